@@ -1,0 +1,178 @@
+/* pinsim plugin ABI: the C boundary between the host and a plugin library.
+ *
+ * A plugin library exports exactly one function, `pinsim_plugin_entry`, returning a
+ * pointer to a constant `pinsim_plugin` table. Everything that crosses is plain C:
+ * numbers, `const char*`, plain arrays and function pointers. Errors are return codes
+ * (0 = success) plus a message written into a caller-owned `pinsim_error` buffer.
+ *
+ * Arrays of positions, velocities and forces are 2xN column-major doubles:
+ * x0 y0 x1 y1 ... . Degrees of freedom are numbered dof = 2*particle + component.
+ *
+ * Authors normally do not write this table by hand: `pinsim/plugin.hpp` generates it
+ * from an ordinary C++ class.
+ */
+#ifndef PINSIM_ABI_H
+#define PINSIM_ABI_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/** Bumped on every incompatible change of any struct in this file. */
+#define PINSIM_ABI_VERSION 1u
+
+/** Name of the one exported symbol of every plugin library. */
+#define PINSIM_ENTRY_SYMBOL "pinsim_plugin_entry"
+
+typedef enum pinsim_kind { PINSIM_KIND_FORCE = 1, PINSIM_KIND_BACKEND = 2 } pinsim_kind;
+
+/** Capability flags (pinsim_plugin.capabilities). */
+enum {
+  PINSIM_CAP_ENERGY = 1u << 0,          /**< force: energy() is provided (conservative part) */
+  PINSIM_CAP_DFDX = 1u << 1,            /**< force: df/dx Jacobian is provided */
+  PINSIM_CAP_DFDV = 1u << 2,            /**< force: df/dv Jacobian is provided */
+  PINSIM_CAP_INTERNAL = 1u << 3,        /**< force: internal, so sum f = 0 and sum x*f = 0 */
+  PINSIM_CAP_DISSIPATIVE = 1u << 4,     /**< force: has a velocity-dependent damping part */
+  PINSIM_CAP_DISTANCE = 1u << 8,        /**< backend: distance() is provided */
+  PINSIM_CAP_PARTICLE_CONTACT = 1u << 9 /**< backend: can resolve particle-particle contacts */
+};
+
+/** Declared parameter types. */
+typedef enum pinsim_param_type {
+  PINSIM_PARAM_REAL = 1,   /**< a double */
+  PINSIM_PARAM_INT = 2,    /**< an integer (stored in a double, must be integral) */
+  PINSIM_PARAM_BOOL = 3,   /**< true/false */
+  PINSIM_PARAM_STRING = 4, /**< a string; if `choices` is set, one of "a|b|c" */
+  PINSIM_PARAM_VEC2 = 5    /**< a 2-vector [x, y]; min/max bound each component */
+} pinsim_param_type;
+
+/** Parameter flags. */
+enum {
+  PINSIM_PARAM_REQUIRED = 1u << 0,      /**< the scene must give a value */
+  PINSIM_PARAM_MIN_EXCLUSIVE = 1u << 1, /**< value must be > min rather than >= min */
+  PINSIM_PARAM_MAX_EXCLUSIVE = 1u << 2  /**< value must be < max rather than <= max */
+};
+
+/** One declared parameter. Unbounded ranges use +-HUGE_VAL. */
+typedef struct pinsim_param {
+  const char* name;           /**< key in the scene's "params" object */
+  uint32_t type;              /**< pinsim_param_type */
+  uint32_t flags;             /**< PINSIM_PARAM_* flags */
+  double default_value[2];    /**< default (REAL/INT/BOOL use [0]; VEC2 uses both) */
+  const char* default_string; /**< default for STRING, may be NULL */
+  const char* choices;        /**< for STRING: allowed values "a|b|c", or NULL for any */
+  double min;                 /**< lower bound (see flags) */
+  double max;                 /**< upper bound (see flags) */
+  const char* units;          /**< e.g. "N/m", "1" for dimensionless */
+  const char* doc;            /**< one line */
+} pinsim_param;
+
+/** Error buffer owned by the caller. Plugins write a NUL-terminated message. */
+typedef struct pinsim_error {
+  char* message;
+  uint32_t capacity;
+} pinsim_error;
+
+/** Read-only view of the particle state. */
+typedef struct pinsim_state_view {
+  uint64_t n;             /**< number of particles */
+  double t;               /**< time, s */
+  const double* x;        /**< positions, 2n */
+  const double* v;        /**< velocities, 2n */
+  const double* inv_mass; /**< 1/m per particle, 0 = pinned (kinematic) */
+  const double* radius;   /**< radius per particle, scene units */
+} pinsim_state_view;
+
+/** Mutable positions and velocities, for a backend's advance(). */
+typedef struct pinsim_state_mut {
+  uint64_t n;
+  double t; /**< time at the start of the step */
+  double* x;
+  double* v;
+  const double* inv_mass;
+  const double* radius;
+} pinsim_state_mut;
+
+/** Sparse matrix sink: the plugin adds value at (row, col), rows/cols are dofs. */
+typedef struct pinsim_triplet_sink {
+  void* context;
+  void (*add)(void* context, uint32_t row, uint32_t col, double value);
+} pinsim_triplet_sink;
+
+/** One contact, reported by a backend. obstacle is the index into the scene's
+ *  "obstacles" array, or -1 for a particle-particle contact (then `other` is set). */
+typedef struct pinsim_event {
+  double t;         /**< time of impact, s */
+  int64_t particle; /**< particle index */
+  int64_t obstacle; /**< obstacle index, or -1 */
+  int64_t other;    /**< other particle for particle-particle contacts, else -1 */
+  double point[2];  /**< contact point */
+  double normal[2]; /**< unit normal, pointing from the obstacle to the particle */
+  double vn_before; /**< relative normal velocity before the impulse (< 0: approaching) */
+  double vn_after;  /**< relative normal velocity after the impulse */
+} pinsim_event;
+
+typedef struct pinsim_event_sink {
+  void* context;
+  void (*emit)(void* context, const pinsim_event* event);
+} pinsim_event_sink;
+
+/** What create() receives. */
+typedef struct pinsim_create_args {
+  const char* params_json; /**< validated parameters, defaults filled, a JSON object */
+  const char* scene_json;  /**< backends: {"obstacles":[...],"inputs":[...],...}; forces: NULL */
+  const pinsim_state_view* initial; /**< the initial state (rest values default to it) */
+  const uint32_t* elements;         /**< n_elements * arity particle indices */
+  uint64_t n_elements;
+  uint32_t arity;      /**< equals the plugin's declared arity */
+  const char* context; /**< where this instance comes from, for messages */
+} pinsim_create_args;
+
+typedef struct pinsim_force_api {
+  /** f += force(state). f has 2n entries. */
+  int (*add_force)(void* self, const pinsim_state_view* s, double* f, pinsim_error* err);
+  /** *energy = potential energy; NULL unless PINSIM_CAP_ENERGY. */
+  int (*energy)(void* self, const pinsim_state_view* s, double* energy, pinsim_error* err);
+  /** Adds df/dx and df/dv entries; either sink may be NULL; NULL unless DFDX or DFDV. */
+  int (*add_jacobians)(void* self, const pinsim_state_view* s, const pinsim_triplet_sink* dfdx,
+                       const pinsim_triplet_sink* dfdv, pinsim_error* err);
+} pinsim_force_api;
+
+typedef struct pinsim_backend_api {
+  /** Move x along v over [t, t+dt], resolving every contact on the way. */
+  int (*advance)(void* self, pinsim_state_mut* s, double dt, const pinsim_event_sink* events,
+                 pinsim_error* err);
+  /** Signed distance from p to the obstacles at time t; NULL unless PINSIM_CAP_DISTANCE.
+   *  *obstacle receives the nearest obstacle's index (may be NULL). */
+  int (*distance)(void* self, const double* p, double t, double* distance, int64_t* obstacle,
+                  pinsim_error* err);
+} pinsim_backend_api;
+
+/** The table a plugin exports. Check abi_version and struct_size before anything else. */
+typedef struct pinsim_plugin {
+  uint32_t abi_version; /**< PINSIM_ABI_VERSION the plugin was built with */
+  uint32_t struct_size; /**< sizeof(pinsim_plugin) the plugin was built with */
+  uint32_t kind;        /**< pinsim_kind */
+  uint32_t arity;   /**< forces: particles per element (1 = per particle, 2 = pair, 3 = triple) */
+  const char* name; /**< e.g. "damped_spring" */
+  const char* version; /**< e.g. "1.0.0" */
+  const char* doc;     /**< one paragraph */
+  const pinsim_param* params;
+  uint32_t n_params;
+  uint32_t capabilities;                                              /**< PINSIM_CAP_* */
+  void* (*create)(const pinsim_create_args* args, pinsim_error* err); /**< NULL on error */
+  void (*destroy)(void* self);
+  pinsim_force_api force;     /**< used when kind == PINSIM_KIND_FORCE */
+  pinsim_backend_api backend; /**< used when kind == PINSIM_KIND_BACKEND */
+} pinsim_plugin;
+
+typedef const pinsim_plugin* (*pinsim_entry_fn)(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* PINSIM_ABI_H */

@@ -1,0 +1,417 @@
+// pinsim/plugin.hpp: write a plugin as an ordinary C++ class (header-only).
+//
+// A force plugin is a class with
+//   static pinsim::PluginInfo info();                       // name, doc, parameters, arity
+//   explicit MyForce(const pinsim::CreateContext& ctx);     // throws pinsim::Error on bad input
+//   void add_force(const pinsim::StateView& s, pinsim::ForceOut& f) const;   // f += force
+// and optionally
+//   double energy(const pinsim::StateView& s) const;                          // -> CAP_ENERGY
+//   void add_dfdx(const pinsim::StateView& s, pinsim::Triplets& J) const;     // -> CAP_DFDX
+//   void add_dfdv(const pinsim::StateView& s, pinsim::Triplets& J) const;     // -> CAP_DFDV
+// A backend plugin is a class with
+//   static pinsim::PluginInfo info();
+//   explicit MyBackend(const pinsim::CreateContext& ctx);   // ctx.scene holds obstacles, inputs
+//   void advance(pinsim::MutableState& s, double dt, pinsim::EventSink& events);
+// and optionally
+//   double distance(const pinsim::Vec2& p, double t, int64_t* obstacle) const; // -> CAP_DISTANCE
+//
+// Then, once, at namespace scope in one .cpp file:  PINSIM_PLUGIN(MyForce)
+// The macro builds the C table of pinsim/abi.h, exports `pinsim_plugin_entry`, derives the
+// capability flags from the members that exist, and turns every exception into an error
+// code plus message at the boundary.
+#pragma once
+
+#include <pinsim/abi.h>
+
+#include <Eigen/Core>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <deque>
+#include <exception>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace pinsim {
+
+using Vec2 = Eigen::Vector2d;
+using Mat2 = Eigen::Matrix2d;
+
+/// The error a plugin throws for bad parameters or bad input; the message reaches the user.
+class Error : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Read-only state: positions and velocities as 2xN matrices (one column per particle).
+struct StateView {
+  std::size_t n;                               ///< number of particles
+  double t;                                    ///< time, s
+  Eigen::Map<const Eigen::Matrix2Xd> x;        ///< positions, scene units
+  Eigen::Map<const Eigen::Matrix2Xd> v;        ///< velocities, units/s
+  Eigen::Map<const Eigen::VectorXd> inv_mass;  ///< 1/mass, 0 for pinned particles
+  Eigen::Map<const Eigen::VectorXd> radius;    ///< radius, scene units
+
+  explicit StateView(const pinsim_state_view& s)
+      : n(s.n),
+        t(s.t),
+        x(s.x, 2, static_cast<Eigen::Index>(s.n)),
+        v(s.v, 2, static_cast<Eigen::Index>(s.n)),
+        inv_mass(s.inv_mass, static_cast<Eigen::Index>(s.n)),
+        radius(s.radius, static_cast<Eigen::Index>(s.n)) {}
+};
+
+/// Positions and velocities a backend may change during advance().
+struct MutableState {
+  std::size_t n;
+  double t;  ///< time at the start of the step, s
+  Eigen::Map<Eigen::Matrix2Xd> x;
+  Eigen::Map<Eigen::Matrix2Xd> v;
+  Eigen::Map<const Eigen::VectorXd> inv_mass;
+  Eigen::Map<const Eigen::VectorXd> radius;
+
+  explicit MutableState(const pinsim_state_mut& s)
+      : n(s.n),
+        t(s.t),
+        x(s.x, 2, static_cast<Eigen::Index>(s.n)),
+        v(s.v, 2, static_cast<Eigen::Index>(s.n)),
+        inv_mass(s.inv_mass, static_cast<Eigen::Index>(s.n)),
+        radius(s.radius, static_cast<Eigen::Index>(s.n)) {}
+};
+
+/// Force accumulator: add to column i the force on particle i.
+using ForceOut = Eigen::Map<Eigen::Matrix2Xd>;
+
+/// Sparse Jacobian accumulator; rows and columns are dofs (2*particle + component).
+class Triplets {
+ public:
+  explicit Triplets(const pinsim_triplet_sink& s) : sink_(s) {}
+  void add(uint32_t row, uint32_t col, double value) { sink_.add(sink_.context, row, col, value); }
+  /// Adds the 2x2 block d f_i / d x_j.
+  void add_block(uint32_t i, uint32_t j, const Mat2& b) {
+    for (uint32_t r = 0; r < 2; ++r)
+      for (uint32_t c = 0; c < 2; ++c) add(2 * i + r, 2 * j + c, b(r, c));
+  }
+
+ private:
+  pinsim_triplet_sink sink_;
+};
+
+/// Contact event sink for backends.
+class EventSink {
+ public:
+  explicit EventSink(const pinsim_event_sink* s) : sink_(s) {}
+  void emit(const pinsim_event& e) {
+    if (sink_ != nullptr && sink_->emit != nullptr) sink_->emit(sink_->context, &e);
+  }
+
+ private:
+  const pinsim_event_sink* sink_;
+};
+
+/// Element lists: element e has particles (e, 0) ... (e, arity-1).
+struct Elements {
+  const uint32_t* data = nullptr;
+  std::size_t count = 0;
+  uint32_t arity = 0;
+  uint32_t operator()(std::size_t e, uint32_t k) const { return data[e * arity + k]; }
+};
+
+/// Validated parameter values (defaults already filled in by the host).
+class Params {
+ public:
+  explicit Params(nlohmann::json j) : j_(std::move(j)) {}
+  double real(const char* name) const { return j_.at(name).get<double>(); }
+  long integer(const char* name) const { return j_.at(name).get<long>(); }
+  bool boolean(const char* name) const { return j_.at(name).get<bool>(); }
+  std::string string(const char* name) const { return j_.at(name).get<std::string>(); }
+  Vec2 vec2(const char* name) const {
+    const auto& a = j_.at(name);
+    return {a.at(0).get<double>(), a.at(1).get<double>()};
+  }
+  const nlohmann::json& json() const { return j_; }
+
+ private:
+  nlohmann::json j_;
+};
+
+/// Everything a plugin constructor receives.
+struct CreateContext {
+  Params params;
+  nlohmann::json scene;  ///< backends: the scene subset (obstacles, inputs, ...); forces: null
+  StateView initial;
+  Elements elements;
+  std::string context;  ///< e.g. "scene.json: forces[2]", for error messages
+};
+
+/// One declared parameter, built fluently: real("k", 100).min(0, true).units("N/m").doc("...")
+struct ParamDecl {
+  std::string name;
+  pinsim_param_type type = PINSIM_PARAM_REAL;
+  uint32_t flags = 0;
+  double def[2] = {0.0, 0.0};
+  std::string def_string;
+  std::string choices_;
+  double lo = -HUGE_VAL;
+  double hi = HUGE_VAL;
+  std::string units_ = "1";
+  std::string doc_;
+
+  ParamDecl& min(double v, bool exclusive = false) {
+    lo = v;
+    if (exclusive) flags |= PINSIM_PARAM_MIN_EXCLUSIVE;
+    return *this;
+  }
+  ParamDecl& max(double v, bool exclusive = false) {
+    hi = v;
+    if (exclusive) flags |= PINSIM_PARAM_MAX_EXCLUSIVE;
+    return *this;
+  }
+  ParamDecl& required() {
+    flags |= PINSIM_PARAM_REQUIRED;
+    return *this;
+  }
+  ParamDecl& units(std::string u) {
+    units_ = std::move(u);
+    return *this;
+  }
+  ParamDecl& doc(std::string d) {
+    doc_ = std::move(d);
+    return *this;
+  }
+  ParamDecl& choices(std::string c) {
+    choices_ = std::move(c);
+    return *this;
+  }
+};
+
+inline ParamDecl real(std::string name, double def) {
+  ParamDecl p;
+  p.name = std::move(name);
+  p.type = PINSIM_PARAM_REAL;
+  p.def[0] = def;
+  return p;
+}
+inline ParamDecl integer(std::string name, long def) {
+  ParamDecl p = real(std::move(name), static_cast<double>(def));
+  p.type = PINSIM_PARAM_INT;
+  return p;
+}
+inline ParamDecl boolean(std::string name, bool def) {
+  ParamDecl p = real(std::move(name), def ? 1.0 : 0.0);
+  p.type = PINSIM_PARAM_BOOL;
+  return p;
+}
+inline ParamDecl string(std::string name, std::string def) {
+  ParamDecl p;
+  p.name = std::move(name);
+  p.type = PINSIM_PARAM_STRING;
+  p.def_string = std::move(def);
+  return p;
+}
+inline ParamDecl vec2(std::string name, double x, double y) {
+  ParamDecl p = real(std::move(name), x);
+  p.type = PINSIM_PARAM_VEC2;
+  p.def[1] = y;
+  return p;
+}
+
+/// What a plugin says about itself.
+struct PluginInfo {
+  std::string name;
+  std::string version = "1.0.0";
+  std::string doc;
+  uint32_t arity = 1;         ///< forces: particles per element
+  uint32_t capabilities = 0;  ///< extra flags: PINSIM_CAP_INTERNAL, _DISSIPATIVE, _PARTICLE_CONTACT
+  std::vector<ParamDecl> params;
+};
+
+namespace detail {
+
+inline void write_error(pinsim_error* err, const char* msg) {
+  if (err == nullptr || err->message == nullptr || err->capacity == 0) return;
+  std::strncpy(err->message, msg, err->capacity - 1);
+  err->message[err->capacity - 1] = '\0';
+}
+
+/// Runs f, converting any exception into return code 1 plus message.
+template <class F>
+int guarded(pinsim_error* err, F&& f) noexcept {
+  try {
+    f();
+    return 0;
+  } catch (const std::exception& e) {
+    write_error(err, e.what());
+  } catch (...) {
+    write_error(err, "unknown exception");
+  }
+  return 1;
+}
+
+template <class T>
+concept ForcePlugin = requires(const T& t, const StateView& s, ForceOut& f) {
+  t.add_force(s, f);
+};
+template <class T>
+concept BackendPlugin = requires(T& t, MutableState& s, double dt, EventSink& e) {
+  t.advance(s, dt, e);
+};
+template <class T>
+concept HasEnergy = requires(const T& t, const StateView& s) {
+  { t.energy(s) } -> std::convertible_to<double>;
+};
+template <class T>
+concept HasDfdx = requires(const T& t, const StateView& s, Triplets& j) {
+  t.add_dfdx(s, j);
+};
+template <class T>
+concept HasDfdv = requires(const T& t, const StateView& s, Triplets& j) {
+  t.add_dfdv(s, j);
+};
+template <class T>
+concept HasDistance = requires(const T& t, const Vec2& p, double time, int64_t* o) {
+  { t.distance(p, time, o) } -> std::convertible_to<double>;
+};
+
+/// Owns the strings behind the C table for the library's lifetime.
+struct TableStorage {
+  PluginInfo info;
+  std::vector<pinsim_param> params;
+  pinsim_plugin table{};
+};
+
+template <class T>
+void* create(const pinsim_create_args* a, pinsim_error* err) noexcept {
+  T* out = nullptr;
+  guarded(err, [&] {
+    nlohmann::json params = nlohmann::json::parse(a->params_json ? a->params_json : "{}");
+    nlohmann::json scene = a->scene_json ? nlohmann::json::parse(a->scene_json) : nlohmann::json();
+    CreateContext ctx{Params(std::move(params)), std::move(scene), StateView(*a->initial),
+                      Elements{a->elements, static_cast<std::size_t>(a->n_elements), a->arity},
+                      a->context ? a->context : ""};
+    out = new T(ctx);
+  });
+  return out;
+}
+
+template <class T>
+void destroy(void* self) noexcept {
+  delete static_cast<T*>(self);
+}
+
+template <class T>
+const pinsim_plugin* make_table() {
+  static TableStorage st = [] {
+    TableStorage s;
+    s.info = T::info();
+    for (const auto& p : s.info.params) {
+      pinsim_param c{};
+      c.name = p.name.c_str();
+      c.type = p.type;
+      c.flags = p.flags;
+      c.default_value[0] = p.def[0];
+      c.default_value[1] = p.def[1];
+      c.default_string = p.type == PINSIM_PARAM_STRING ? p.def_string.c_str() : nullptr;
+      c.choices = p.choices_.empty() ? nullptr : p.choices_.c_str();
+      c.min = p.lo;
+      c.max = p.hi;
+      c.units = p.units_.c_str();
+      c.doc = p.doc_.c_str();
+      s.params.push_back(c);
+    }
+    pinsim_plugin& t = s.table;
+    t.abi_version = PINSIM_ABI_VERSION;
+    t.struct_size = sizeof(pinsim_plugin);
+    t.arity = s.info.arity;
+    t.name = s.info.name.c_str();
+    t.version = s.info.version.c_str();
+    t.doc = s.info.doc.c_str();
+    t.params = s.params.data();
+    t.n_params = static_cast<uint32_t>(s.params.size());
+    t.capabilities = s.info.capabilities;
+    t.create = &create<T>;
+    t.destroy = &destroy<T>;
+    if constexpr (ForcePlugin<T>) {
+      t.kind = PINSIM_KIND_FORCE;
+      t.force.add_force = [](void* self, const pinsim_state_view* sv, double* f,
+                             pinsim_error* err) noexcept {
+        return guarded(err, [&] {
+          StateView s(*sv);
+          ForceOut fo(f, 2, static_cast<Eigen::Index>(sv->n));
+          static_cast<const T*>(self)->add_force(s, fo);
+        });
+      };
+      if constexpr (HasEnergy<T>) {
+        t.capabilities |= PINSIM_CAP_ENERGY;
+        t.force.energy = [](void* self, const pinsim_state_view* sv, double* e,
+                            pinsim_error* err) noexcept {
+          return guarded(err, [&] { *e = static_cast<const T*>(self)->energy(StateView(*sv)); });
+        };
+      }
+      if constexpr (HasDfdx<T>) t.capabilities |= PINSIM_CAP_DFDX;
+      if constexpr (HasDfdv<T>) t.capabilities |= PINSIM_CAP_DFDV;
+      if constexpr (HasDfdx<T> || HasDfdv<T>) {
+        t.force.add_jacobians = [](void* self, const pinsim_state_view* sv,
+                                   const pinsim_triplet_sink* dx, const pinsim_triplet_sink* dv,
+                                   pinsim_error* err) noexcept {
+          return guarded(err, [&] {
+            StateView s(*sv);
+            const T* p = static_cast<const T*>(self);
+            if constexpr (HasDfdx<T>) {
+              if (dx != nullptr) {
+                Triplets j(*dx);
+                p->add_dfdx(s, j);
+              }
+            }
+            if constexpr (HasDfdv<T>) {
+              if (dv != nullptr) {
+                Triplets j(*dv);
+                p->add_dfdv(s, j);
+              }
+            }
+          });
+        };
+      }
+    } else {
+      static_assert(BackendPlugin<T>,
+                    "PINSIM_PLUGIN: class needs add_force(StateView, ForceOut&) const "
+                    "or advance(MutableState&, double, EventSink&)");
+      t.kind = PINSIM_KIND_BACKEND;
+      t.backend.advance = [](void* self, pinsim_state_mut* sm, double dt,
+                             const pinsim_event_sink* ev, pinsim_error* err) noexcept {
+        return guarded(err, [&] {
+          MutableState s(*sm);
+          EventSink sink(ev);
+          static_cast<T*>(self)->advance(s, dt, sink);
+        });
+      };
+      if constexpr (HasDistance<T>) {
+        t.capabilities |= PINSIM_CAP_DISTANCE;
+        t.backend.distance = [](void* self, const double* p, double time, double* d, int64_t* o,
+                                pinsim_error* err) noexcept {
+          return guarded(
+              err, [&] { *d = static_cast<const T*>(self)->distance(Vec2(p[0], p[1]), time, o); });
+        };
+      }
+    }
+    return s;
+  }();
+  return &st.table;
+}
+
+}  // namespace detail
+}  // namespace pinsim
+
+/// Registers CLASS as this library's plugin and exports the entry function.
+#define PINSIM_PLUGIN(CLASS)                                                                  \
+  extern "C" __attribute__((visibility("default"))) const pinsim_plugin* pinsim_plugin_entry( \
+      void) {                                                                                 \
+    try {                                                                                     \
+      return ::pinsim::detail::make_table<CLASS>();                                           \
+    } catch (...) {                                                                           \
+      return nullptr;                                                                         \
+    }                                                                                         \
+  }

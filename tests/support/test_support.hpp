@@ -1,0 +1,36 @@
+// Helpers shared by the tests.
+#pragma once
+
+#include <fenv.h>
+
+#include <filesystem>
+#include <string>
+
+namespace pinsim::test {
+
+/// Turns the test main's floating-point traps off for a scope (for tests that make NaNs
+/// on purpose, such as NaN detection).
+class FpTrapsOff {
+ public:
+  FpTrapsOff() : saved_(fegetexcept()) { fedisableexcept(FE_ALL_EXCEPT); }
+  ~FpTrapsOff() {
+    feclearexcept(FE_ALL_EXCEPT);
+    feenableexcept(saved_);
+  }
+  FpTrapsOff(const FpTrapsOff&) = delete;
+  FpTrapsOff& operator=(const FpTrapsOff&) = delete;
+
+ private:
+  int saved_;
+};
+
+/// A fresh empty folder under the build tree's temp area, unique per call.
+std::filesystem::path temp_dir(const std::string& tag);
+
+/// Writes text to a file, creating folders.
+void write_file(const std::filesystem::path& p, const std::string& text);
+
+/// Reads a whole file.
+std::string read_file(const std::filesystem::path& p);
+
+}  // namespace pinsim::test
