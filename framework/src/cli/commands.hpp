@@ -1,0 +1,13 @@
+// Each `pinsim` subcommand registers itself on the app; one file per command.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+namespace pinsim::cli {
+
+void add_run_command(CLI::App& app);
+void add_validate_command(CLI::App& app);
+void add_plugins_command(CLI::App& app);
+void add_check_plugin_command(CLI::App& app);
+
+}  // namespace pinsim::cli
