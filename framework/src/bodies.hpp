@@ -2,12 +2,10 @@
 // (a ring blob's "edges", a strand's "triples", ...).
 #pragma once
 
-#include <nlohmann/json.hpp>
-
 #include <Eigen/Core>
-
 #include <cstdint>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 

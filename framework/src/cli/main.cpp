@@ -1,1 +1,46 @@
-int main() { return 0; }
+// pinsim: the command line program. Each subcommand lives in its own cmd_*.cpp.
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <iostream>
+
+#include "commands.hpp"
+#include "plugin_instance.hpp"
+#include "plugin_loader.hpp"
+#include "scene_error.hpp"
+
+int main(int argc, char** argv) {
+  auto logger = spdlog::stderr_color_mt("pinsim");
+  logger->set_pattern("%^[%l]%$ %v");
+  spdlog::set_default_logger(logger);
+
+  CLI::App app{"pinsim: 2D particle simulation with plugin forces and collision backends"};
+  app.set_version_flag("--version", std::string("pinsim ") + PINSIM_VERSION);
+  int verbose = 0;
+  bool quiet = false;
+  app.add_flag("-v,--verbose", verbose, "More log output (-vv for trace)");
+  app.add_flag("-q,--quiet", quiet, "Only errors");
+  app.require_subcommand(1);
+  app.parse_complete_callback([&] {
+    spdlog::set_level(quiet          ? spdlog::level::err
+                      : verbose >= 2 ? spdlog::level::trace
+                      : verbose == 1 ? spdlog::level::debug
+                                     : spdlog::level::info);
+  });
+  pinsim::cli::add_run_command(app);
+  pinsim::cli::add_validate_command(app);
+  pinsim::cli::add_plugins_command(app);
+  // check-plugin registers here once its command file lands.
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::RuntimeError& e) {
+    return e.get_exit_code();  // a subcommand's own exit status
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const std::exception& e) {
+    spdlog::error("{}", e.what());
+    return 2;
+  }
+  return 0;
+}

@@ -1,0 +1,39 @@
+// pinsim plugins [NAME]: list the plugins found, or print one plugin's parameter table.
+#include <iostream>
+#include <memory>
+
+#include "commands.hpp"
+#include "param_validation.hpp"
+#include "plugin_loader.hpp"
+
+namespace pinsim::cli {
+
+void add_plugins_command(CLI::App& app) {
+  auto name = std::make_shared<std::string>();
+  CLI::App* c = app.add_subcommand("plugins", "List plugins, or show one plugin's parameters");
+  c->add_option("name", *name, "Plugin name or library path");
+  c->callback([name] {
+    PluginLoader loader(plugin_search_dirs());
+    if (!name->empty()) {
+      const bool is_path = name->find('/') != std::string::npos;
+      auto p = is_path ? loader.load_path(*name, "") : loader.load(*name);
+      std::cout << format_param_table(*p->table) << "  library: " << p->path.string() << "\n";
+      return;
+    }
+    std::cout << "search path:";
+    for (const auto& d : loader.dirs()) std::cout << " " << d.string();
+    std::cout << "\n";
+    for (const auto& l : loader.list()) {
+      if (!l.plugin) {
+        std::cout << "  (broken)  " << l.path.string() << ": " << l.error << "\n";
+        continue;
+      }
+      const auto* t = l.plugin->table;
+      std::cout << "  " << (t->kind == PINSIM_KIND_FORCE ? "force   " : "backend ") << t->name
+                << " " << t->version << (l.shadowed ? "  (shadowed by an earlier one)" : "")
+                << "\n      " << t->doc << "\n      " << l.path.string() << "\n";
+    }
+  });
+}
+
+}  // namespace pinsim::cli
