@@ -1,20 +1,47 @@
 #include "gravity.hpp"
 
+#include <cmath>
+#include <string>
+
 namespace pinsim::plugins {
+
+namespace {
+/// Pairs closer than this (softened) distance exert no force: coincident unsoftened
+/// particles have no defined direction.
+constexpr double kMinDist2 = 1e-200;
+}  // namespace
 
 PluginInfo Gravity::info() {
   PluginInfo i;
   i.name = "gravity";
-  i.version = "1.0.0";
+  i.version = "1.1.0";
   i.doc =
-      "Uniform gravity f_i = m_i g on every listed particle (default: all); "
-      "pinned particles (inverse mass 0) are skipped.";
+      "Gravity on the listed particles (default: all); pinned particles (inverse mass 0) are "
+      "skipped. mode 'uniform': f_i = m_i g. mode 'pairwise': every two particles attract "
+      "with E = G m_k m_l R_s^alpha / alpha (ln R_s for alpha = 0), R_s = sqrt(R^2 + "
+      "softening^2); alpha = -1 is Newtonian gravity.";
   i.arity = 1;
-  i.params.push_back(vec2("g", 0.0, -9.81).units("m/s^2").doc("gravitational acceleration"));
+  i.params.push_back(
+      string("mode", "uniform").choices("uniform|pairwise").doc("uniform field or pairwise"));
+  i.params.push_back(vec2("g", 0.0, -9.81).units("m/s^2").doc("uniform: acceleration"));
+  i.params.push_back(real("G", 1.0)
+                         .min(0)
+                         .units("N m^(2-alpha)/kg^2")
+                         .doc("pairwise: coupling constant, |f| = G m_k m_l R^(alpha-1)"));
+  i.params.push_back(
+      real("alpha", -1.0).min(-4).max(4).units("1").doc("pairwise: exponent of R in E"));
+  i.params.push_back(
+      real("softening", 1e-3).min(0).units("m").doc("pairwise: ε in R_s = sqrt(R^2 + ε^2)"));
   return i;
 }
 
-Gravity::Gravity(const CreateContext& ctx) : g_(ctx.params.vec2("g")) {
+Gravity::Gravity(const CreateContext& ctx)
+    : pairwise_(ctx.params.string("mode") == "pairwise"),
+      g_(ctx.params.vec2("g")),
+      G_(ctx.params.real("G")),
+      alpha_(ctx.params.real("alpha")) {
+  const double eps = ctx.params.real("softening");
+  eps2_ = eps * eps;
   particles_.assign(ctx.elements.data, ctx.elements.data + ctx.elements.count);
   for (uint32_t p : particles_)
     if (p >= ctx.initial.n)
@@ -23,19 +50,75 @@ Gravity::Gravity(const CreateContext& ctx) : g_(ctx.params.vec2("g")) {
 }
 
 void Gravity::add_force(const StateView& s, ForceOut& f) const {
-  for (uint32_t p : particles_) {
-    const double w = s.inv_mass[p];
-    if (w > 0.0) f.col(p) += g_ / w;
+  if (!pairwise_) {
+    for (uint32_t p : particles_) {
+      const double w = s.inv_mass[p];
+      if (w > 0.0) f.col(p) += g_ / w;
+    }
+    return;
+  }
+  const double h = 0.5 * (alpha_ - 2.0);
+  for (std::size_t a = 0; a < particles_.size(); ++a) {
+    const uint32_t k = particles_[a];
+    if (!(s.inv_mass[k] > 0.0)) continue;
+    const double mk = 1.0 / s.inv_mass[k];
+    for (std::size_t b = a + 1; b < particles_.size(); ++b) {
+      const uint32_t l = particles_[b];
+      if (!(s.inv_mass[l] > 0.0)) continue;
+      const Vec2 r = s.x.col(k) - s.x.col(l);
+      const double rs2 = r.squaredNorm() + eps2_;
+      if (!(rs2 > kMinDist2)) continue;
+      const Vec2 fk = -G_ * mk / s.inv_mass[l] * std::pow(rs2, h) * r;
+      f.col(k) += fk;
+      f.col(l) -= fk;
+    }
   }
 }
 
 double Gravity::energy(const StateView& s) const {
   double e = 0.0;
-  for (uint32_t p : particles_) {
-    const double w = s.inv_mass[p];
-    if (w > 0.0) e -= g_.dot(s.x.col(p)) / w;
+  if (!pairwise_) {
+    for (uint32_t p : particles_) {
+      const double w = s.inv_mass[p];
+      if (w > 0.0) e -= g_.dot(s.x.col(p)) / w;
+    }
+    return e;
+  }
+  for (std::size_t a = 0; a < particles_.size(); ++a) {
+    const uint32_t k = particles_[a];
+    if (!(s.inv_mass[k] > 0.0)) continue;
+    for (std::size_t b = a + 1; b < particles_.size(); ++b) {
+      const uint32_t l = particles_[b];
+      if (!(s.inv_mass[l] > 0.0)) continue;
+      const double rs2 = (s.x.col(k) - s.x.col(l)).squaredNorm() + eps2_;
+      if (!(rs2 > kMinDist2)) continue;
+      const double phi = alpha_ == 0.0 ? 0.5 * std::log(rs2) : std::pow(rs2, 0.5 * alpha_) / alpha_;
+      e += G_ / (s.inv_mass[k] * s.inv_mass[l]) * phi;
+    }
   }
   return e;
+}
+
+void Gravity::add_dfdx(const StateView& s, Triplets& J) const {
+  if (!pairwise_) return;
+  for (std::size_t a = 0; a < particles_.size(); ++a) {
+    const uint32_t k = particles_[a];
+    if (!(s.inv_mass[k] > 0.0)) continue;
+    for (std::size_t b = a + 1; b < particles_.size(); ++b) {
+      const uint32_t l = particles_[b];
+      if (!(s.inv_mass[l] > 0.0)) continue;
+      const Vec2 r = s.x.col(k) - s.x.col(l);
+      const double rs2 = r.squaredNorm() + eps2_;
+      if (!(rs2 > kMinDist2)) continue;
+      const double gmm = G_ / (s.inv_mass[k] * s.inv_mass[l]);
+      const double p2 = std::pow(rs2, 0.5 * (alpha_ - 2.0));
+      const Mat2 K = gmm * (p2 * Mat2::Identity() + (alpha_ - 2.0) * p2 / rs2 * r * r.transpose());
+      J.add_block(k, k, -K);
+      J.add_block(l, l, -K);
+      J.add_block(k, l, K);
+      J.add_block(l, k, K);
+    }
+  }
 }
 
 }  // namespace pinsim::plugins

@@ -1,4 +1,6 @@
-// Gravity: uniform field f_i = m_i g.
+// Gravity: a uniform field f_i = m_i g (default), or pairwise attraction between every two
+// listed particles with energy G m_k m_l R_s^α / α (seed, "Gradient of distance to power α
+// (e.g., gravity, bending)"), R_s = sqrt(R² + ε²) the softened distance.
 #pragma once
 
 #include <pinsim/plugin.hpp>
@@ -11,16 +13,23 @@ class Gravity {
   static PluginInfo info();
   explicit Gravity(const CreateContext& ctx);
 
-  /// f_i += m_i g for every listed particle with finite mass.
+  /// uniform: f_i += m_i g. pairwise: f_k += -G m_k m_l R_s^(α-2) (p_k - p_l), f_l = -f_k.
   void add_force(const StateView& s, ForceOut& f) const;
-  /// E = -sum_i m_i g . x_i
+  /// uniform: E = -Σ m_i g·x_i. pairwise: E = Σ_{k<l} G m_k m_l φ(R_s),
+  /// φ = R_s^α / α (α ≠ 0, α = -1 is Newton's -G m m / R), φ = ln R_s (α = 0).
   double energy(const StateView& s) const;
-  /// df/dx = 0 and df/dv = 0: a uniform field adds no Jacobian entries.
-  void add_dfdx(const StateView&, Triplets&) const {}
+  /// uniform: 0. pairwise: df_k/dp_k = -K, df_k/dp_l = K with
+  /// K = G m_k m_l [R_s^(α-2) I + (α-2) R_s^(α-4) R Rᵀ].
+  void add_dfdx(const StateView& s, Triplets& J) const;
+  /// No velocity dependence: df/dv = 0.
   void add_dfdv(const StateView&, Triplets&) const {}
 
  private:
+  bool pairwise_ = false;
   Vec2 g_;
+  double G_ = 1.0;
+  double alpha_ = -1.0;
+  double eps2_ = 0.0;  ///< softening squared
   std::vector<uint32_t> particles_;
 };
 

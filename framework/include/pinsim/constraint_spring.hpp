@@ -1,0 +1,185 @@
+// pinsim/constraint_spring.hpp: the generalized (damped) constraint spring, header-only.
+//
+// Seed lecture, "Generalized spring model" and "Generalized damped springs":
+//   E = ks/2 C(p)^2,   f = -J^T (ks C + kd dC/dt),   J = dC/dp,   dC/dt = J v.
+// The author writes only C and dC/dp for one element (a stencil of Arity particles):
+//
+//   class MySpring : public pinsim::ConstraintSpring<MySpring, 3> {
+//    public:
+//     static pinsim::PluginInfo info();
+//     explicit MySpring(const pinsim::CreateContext& ctx)
+//         : ConstraintSpring(ctx, ctx.params.real("ks"), ctx.params.real("kd")) {}
+//     /// Returns C for element e at positions p (one column per particle) and writes
+//     /// dC/dp into dC (same shape).
+//     double constraint(std::size_t e, const Stencil& p, Stencil& dC) const;
+//     // optional, exact second derivatives d2C/dp2 (dof 2k+c), else the SDK differentiates
+//     // your dC/dp by central differences:
+//     void constraint_hessian(std::size_t e, const Stencil& p, Hessian& H) const;
+//   };
+//   PINSIM_PLUGIN(MySpring)
+//
+// The base provides add_force, energy, add_dfdx and add_dfdv, so the plugin gets the
+// capabilities ENERGY | DFDX | DFDV. Jacobians (s = ks C + kd dC/dt, H = d2C/dp2):
+//   df/dx = -ks J^T J - s H - kd J^T (H v)^T       (d(J v)/dx = H v)
+//   df/dv = -kd J^T J
+#pragma once
+
+#include <algorithm>
+#include <cstdint>
+#include <pinsim/plugin.hpp>
+#include <string>
+#include <vector>
+
+namespace pinsim {
+
+/// The two parameters every constraint spring has: stiffness ks and damping kd.
+/// `c_units` is the unit of C (e.g. "m" for a length, "1" for an angle or cosine).
+inline std::vector<ParamDecl> constraint_spring_params(double ks_default, double kd_default,
+                                                       const std::string& c_units) {
+  const std::string ks_units = c_units == "1" ? "J" : "J/" + c_units + "^2";
+  const std::string kd_units = c_units == "1" ? "J s" : "J s/" + c_units + "^2";
+  return {real("ks", ks_default).min(0).units(ks_units).doc("stiffness: E = ks/2 C^2"),
+          real("kd", kd_default).min(0).units(kd_units).doc("damping on dC/dt")};
+}
+
+template <class Derived, uint32_t Arity>
+class ConstraintSpring {
+ public:
+  static_assert(Arity >= 1 && Arity <= 8, "ConstraintSpring: stencil of 1 to 8 particles");
+  static constexpr uint32_t kArity = Arity;
+  static constexpr int kDofs = 2 * static_cast<int>(Arity);
+  /// Positions (or gradients) of one element's particles, one column per particle.
+  using Stencil = Eigen::Matrix<double, 2, static_cast<int>(Arity)>;
+  /// Second derivatives over the element's dofs, dof = 2*k + component.
+  using Hessian = Eigen::Matrix<double, kDofs, kDofs>;
+
+  /// Stores ks, kd and the element list; checks arity and indices against ctx.initial.
+  ConstraintSpring(const CreateContext& ctx, double ks, double kd) : ks_(ks), kd_(kd) {
+    if (ctx.elements.arity != Arity)
+      throw Error(ctx.context + ": elements have " + std::to_string(ctx.elements.arity) +
+                  " particles each, this force needs " + std::to_string(Arity));
+    idx_.assign(ctx.elements.data, ctx.elements.data + ctx.elements.count * Arity);
+    for (uint32_t i : idx_)
+      if (i >= ctx.initial.n)
+        throw Error(ctx.context + ": particle index " + std::to_string(i) + " out of range (" +
+                    std::to_string(ctx.initial.n) + " particles)");
+  }
+
+  /// f += -J^T (ks C + kd J v) for every element.
+  void add_force(const StateView& s, ForceOut& f) const {
+    const double* x = s.x.data();
+    const double* v = s.v.data();
+    double* out = f.data();
+    const std::size_t m = count();
+    const uint32_t* id = idx_.data();
+    for (std::size_t e = 0; e < m; ++e, id += Arity) {
+      Stencil p, dC;
+      for (uint32_t k = 0; k < Arity; ++k) {
+        p(0, k) = x[2 * id[k]];
+        p(1, k) = x[2 * id[k] + 1];
+      }
+      const double c = self().constraint(e, p, dC);
+      double cdot = 0.0;
+      for (uint32_t k = 0; k < Arity; ++k)
+        cdot += dC(0, k) * v[2 * id[k]] + dC(1, k) * v[2 * id[k] + 1];
+      const double sc = ks_ * c + kd_ * cdot;
+      for (uint32_t k = 0; k < Arity; ++k) {
+        out[2 * id[k]] -= sc * dC(0, k);
+        out[2 * id[k] + 1] -= sc * dC(1, k);
+      }
+    }
+  }
+
+  /// E = sum over elements of ks/2 C^2 (the conservative part).
+  double energy(const StateView& s) const {
+    double sum = 0.0;
+    for (std::size_t e = 0; e < count(); ++e) {
+      Stencil dC;
+      const double c = self().constraint(e, gather(s.x, e), dC);
+      sum += c * c;
+    }
+    return 0.5 * ks_ * sum;
+  }
+
+  /// df/dx = -ks J^T J - (ks C + kd Cdot) H - kd J^T (H v)^T, per element.
+  void add_dfdx(const StateView& s, Triplets& out) const {
+    for (std::size_t e = 0; e < count(); ++e) {
+      const Stencil p = gather(s.x, e), vel = gather(s.v, e);
+      Stencil dC;
+      const double c = self().constraint(e, p, dC);
+      const Eigen::Map<const Eigen::Matrix<double, kDofs, 1>> g(dC.data()), vv(vel.data());
+      const Hessian h = hessian(e, p);
+      const double sc = ks_ * c + kd_ * g.dot(vv);
+      const Hessian k = -ks_ * g * g.transpose() - sc * h - kd_ * g * (h * vv).transpose();
+      scatter(e, k, out);
+    }
+  }
+
+  /// df/dv = -kd J^T J, per element.
+  void add_dfdv(const StateView& s, Triplets& out) const {
+    if (kd_ == 0.0) return;
+    for (std::size_t e = 0; e < count(); ++e) {
+      Stencil dC;
+      self().constraint(e, gather(s.x, e), dC);
+      const Eigen::Map<const Eigen::Matrix<double, kDofs, 1>> g(dC.data());
+      scatter(e, -kd_ * g * g.transpose(), out);
+    }
+  }
+
+ protected:
+  /// Number of elements.
+  std::size_t count() const { return idx_.size() / Arity; }
+  /// Particle k of element e.
+  uint32_t particle(std::size_t e, uint32_t k) const { return idx_[e * Arity + k]; }
+  /// Positions (or velocities) of element e's particles taken from a 2xN matrix.
+  template <class M>
+  Stencil gather(const M& m, std::size_t e) const {
+    Stencil p;
+    for (uint32_t k = 0; k < Arity; ++k) p.col(k) = m.col(particle(e, k));
+    return p;
+  }
+  double ks() const { return ks_; }
+  double kd() const { return kd_; }
+
+ private:
+  const Derived& self() const { return static_cast<const Derived&>(*this); }
+
+  /// The author's exact Hessian if there is one, else central differences of dC/dp with a
+  /// step relative to the stencil's size (error ~1e-10 relative for smooth C).
+  Hessian hessian(std::size_t e, const Stencil& p) const {
+    Hessian h;
+    if constexpr (requires(const Derived& d, const Stencil& q, Hessian& hh) {
+                    d.constraint_hessian(std::size_t{0}, q, hh);
+                  }) {
+      h.setZero();
+      self().constraint_hessian(e, p, h);
+    } else {
+      const Eigen::Vector2d lo = p.rowwise().minCoeff(), hi = p.rowwise().maxCoeff();
+      const double size = std::max((hi - lo).maxCoeff(), 1e-300);
+      const double step = 1e-5 * size;
+      for (int j = 0; j < kDofs; ++j) {
+        Stencil qp = p, qm = p, gp, gm;
+        qp.data()[j] += step;
+        qm.data()[j] -= step;
+        self().constraint(e, qp, gp);
+        self().constraint(e, qm, gm);
+        for (int i = 0; i < kDofs; ++i) h(i, j) = (gp.data()[i] - gm.data()[i]) / (2.0 * step);
+      }
+      h = (0.5 * (h + h.transpose())).eval();
+    }
+    return h;
+  }
+
+  void scatter(std::size_t e, const Hessian& k, Triplets& out) const {
+    for (uint32_t a = 0; a < Arity; ++a)
+      for (uint32_t b = 0; b < Arity; ++b)
+        out.add_block(particle(e, a), particle(e, b),
+                      k.template block<2, 2>(2 * static_cast<int>(a), 2 * static_cast<int>(b)));
+  }
+
+  double ks_;
+  double kd_;
+  std::vector<uint32_t> idx_;
+};
+
+}  // namespace pinsim

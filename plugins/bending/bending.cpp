@@ -1,0 +1,162 @@
+#include "bending.hpp"
+
+#include <cmath>
+#include <string>
+
+namespace pinsim::plugins {
+
+namespace {
+/// Below this edge length the edge direction is undefined: the triple exerts no force.
+constexpr double kMinLength = 1e-100;
+}  // namespace
+
+PluginInfo Bending::info() {
+  PluginInfo i;
+  i.name = "bending";
+  i.version = "1.0.0";
+  i.doc =
+      "Hair bending on particle triples (p0, p1, p2): E = -k/2 cos(θ - θ0), θ the signed "
+      "angle from a = p1 - p0 to b = p2 - p1. shape 'flat' is the seed's E = -k/2 â·b̂ "
+      "(θ0 = 0); 'initial' takes each triple's initial angle; 'angle' uses rest_angle.";
+  i.arity = 3;
+  i.capabilities = PINSIM_CAP_INTERNAL;
+  i.params.push_back(real("k", 1.0).min(0).units("J").doc("bending stiffness, E = -k/2 cos θ"));
+  i.params.push_back(
+      string("shape", "flat").choices("flat|initial|angle").doc("rest shape of every triple"));
+  i.params.push_back(
+      real("rest_angle", 0.0).units("rad").doc("rest angle θ0 when shape is 'angle'"));
+  return i;
+}
+
+Bending::Bending(const CreateContext& ctx) : k_(ctx.params.real("k")) {
+  if (ctx.elements.arity != 3)
+    throw Error(ctx.context + ": bending elements are triples, got arity " +
+                std::to_string(ctx.elements.arity));
+  idx_.assign(ctx.elements.data, ctx.elements.data + 3 * ctx.elements.count);
+  for (uint32_t i : idx_)
+    if (i >= ctx.initial.n)
+      throw Error(ctx.context + ": particle index " + std::to_string(i) + " out of range (" +
+                  std::to_string(ctx.initial.n) + " particles)");
+  const std::string shape = ctx.params.string("shape");
+  if (shape == "flat") return;
+  flat_ = false;
+  const std::size_t m = ctx.elements.count;
+  c0_.resize(m);
+  s0_.resize(m);
+  const double th = ctx.params.real("rest_angle");
+  for (std::size_t e = 0; e < m; ++e) {
+    if (shape == "angle") {
+      c0_[e] = std::cos(th);
+      s0_[e] = std::sin(th);
+      continue;
+    }
+    const Vec2 a = ctx.initial.x.col(idx_[3 * e + 1]) - ctx.initial.x.col(idx_[3 * e]);
+    const Vec2 b = ctx.initial.x.col(idx_[3 * e + 2]) - ctx.initial.x.col(idx_[3 * e + 1]);
+    const double la = a.norm(), lb = b.norm();
+    if (la > kMinLength && lb > kMinLength) {  // degenerate initial triple: flat
+      c0_[e] = a.dot(b) / (la * lb);
+      s0_[e] = (a.x() * b.y() - a.y() * b.x()) / (la * lb);
+    } else {
+      c0_[e] = 1.0;
+      s0_[e] = 0.0;
+    }
+  }
+}
+
+double Bending::rest_angle(std::size_t e) const { return flat_ ? 0.0 : std::atan2(s0_[e], c0_[e]); }
+
+template <bool Flat>
+void Bending::add_force_impl(const StateView& s, ForceOut& f) const {
+  const double* x = s.x.data();
+  double* out = f.data();
+  const std::size_t m = idx_.size() / 3;
+  const uint32_t* id = idx_.data();
+  const double hk = 0.5 * k_;
+  for (std::size_t e = 0; e < m; ++e, id += 3) {
+    const uint32_t i0 = id[0], i1 = id[1], i2 = id[2];
+    const double ax = x[2 * i1] - x[2 * i0], ay = x[2 * i1 + 1] - x[2 * i0 + 1];
+    const double bx = x[2 * i2] - x[2 * i1], by = x[2 * i2 + 1] - x[2 * i1 + 1];
+    const double la = std::sqrt(ax * ax + ay * ay), lb = std::sqrt(bx * bx + by * by);
+    if (!(la > kMinLength && lb > kMinLength)) continue;
+    const double ia = 1.0 / la, ib = 1.0 / lb;
+    const double ahx = ax * ia, ahy = ay * ia, bhx = bx * ib, bhy = by * ib;
+    double mx = bhx, my = bhy, nx = ahx, ny = ahy;  // m = M b̂, n = Mᵀ â
+    if constexpr (!Flat) {
+      const double c = c0_[e], sn = s0_[e];
+      mx = c * bhx + sn * bhy;
+      my = -sn * bhx + c * bhy;
+      nx = c * ahx - sn * ahy;
+      ny = sn * ahx + c * ahy;
+    }
+    const double sdot = ahx * mx + ahy * my;  // s = âᵀ M b̂
+    const double c0 = hk * ia, c2 = hk * ib;
+    const double f0x = -c0 * (mx - ahx * sdot), f0y = -c0 * (my - ahy * sdot);
+    const double f2x = c2 * (nx - bhx * sdot), f2y = c2 * (ny - bhy * sdot);
+    out[2 * i0] += f0x;
+    out[2 * i0 + 1] += f0y;
+    out[2 * i2] += f2x;
+    out[2 * i2 + 1] += f2y;
+    out[2 * i1] -= f0x + f2x;
+    out[2 * i1 + 1] -= f0y + f2y;
+  }
+}
+
+void Bending::add_force(const StateView& s, ForceOut& f) const {
+  if (flat_)
+    add_force_impl<true>(s, f);
+  else
+    add_force_impl<false>(s, f);
+}
+
+double Bending::energy(const StateView& s) const {
+  double sum = 0.0;
+  for (std::size_t e = 0; e < idx_.size() / 3; ++e) {
+    const Vec2 a = s.x.col(idx_[3 * e + 1]) - s.x.col(idx_[3 * e]);
+    const Vec2 b = s.x.col(idx_[3 * e + 2]) - s.x.col(idx_[3 * e + 1]);
+    const double la = a.norm(), lb = b.norm();
+    if (!(la > kMinLength && lb > kMinLength)) continue;
+    const double c = flat_ ? 1.0 : c0_[e], sn = flat_ ? 0.0 : s0_[e];
+    sum += (c * a.dot(b) + sn * (a.x() * b.y() - a.y() * b.x())) / (la * lb);
+  }
+  return -0.5 * k_ * sum;
+}
+
+// Second derivatives of s = âᵀ M b̂ in the edge vectors (Π_u = I - ûûᵀ, m = M b̂, n = Mᵀ â),
+// from ∂â/∂a = Π_a / a (seed, "Gradient of unit distance vector"):
+//   ds/da = Π_a m / a,   ds/db = Π_b n / b
+//   d2s/da2 = -(Π_a m âᵀ + â mᵀ Π_a + (â·m) Π_a) / a²
+//   d2s/db2 = -(Π_b n b̂ᵀ + b̂ nᵀ Π_b + (b̂·n) Π_b) / b²
+//   d2s/dadb = Π_a M Π_b / (a b)
+// With a = p1 - p0, b = p2 - p1 (da/dp = [-I, I, 0], db/dp = [0, -I, I]) and f = k/2 ds/dp,
+// df_i/dp_j = k/2 Σ D_i D_j H over the (a, b) pairs.
+void Bending::add_dfdx(const StateView& s, Triplets& J) const {
+  const Mat2 id = Mat2::Identity();
+  for (std::size_t e = 0; e < idx_.size() / 3; ++e) {
+    const uint32_t p[3] = {idx_[3 * e], idx_[3 * e + 1], idx_[3 * e + 2]};
+    const Vec2 a = s.x.col(p[1]) - s.x.col(p[0]);
+    const Vec2 b = s.x.col(p[2]) - s.x.col(p[1]);
+    const double la = a.norm(), lb = b.norm();
+    if (!(la > kMinLength && lb > kMinLength)) continue;
+    Mat2 M = id;
+    if (!flat_) M << c0_[e], s0_[e], -s0_[e], c0_[e];
+    const Vec2 ah = a / la, bh = b / lb;
+    const Vec2 m = M * bh, n = M.transpose() * ah;
+    const Mat2 pa = id - ah * ah.transpose(), pb = id - bh * bh.transpose();
+    const Mat2 haa =
+        -(pa * m * ah.transpose() + ah * m.transpose() * pa + ah.dot(m) * pa) / (la * la);
+    const Mat2 hbb =
+        -(pb * n * bh.transpose() + bh * n.transpose() * pb + bh.dot(n) * pb) / (lb * lb);
+    const Mat2 hab = pa * M * pb / (la * lb);
+    const double da[3] = {-1.0, 1.0, 0.0}, db[3] = {0.0, -1.0, 1.0};
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) {
+        const Mat2 blk = da[i] * da[j] * haa + da[i] * db[j] * hab +
+                         db[i] * da[j] * hab.transpose() + db[i] * db[j] * hbb;
+        J.add_block(p[i], p[j], 0.5 * k_ * blk);
+      }
+  }
+}
+
+}  // namespace pinsim::plugins
+
+PINSIM_PLUGIN(pinsim::plugins::Bending)

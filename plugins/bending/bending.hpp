@@ -1,0 +1,40 @@
+// Bending: hair bending on particle triples (seed, "Hair bending force (flat rest shape)"),
+// E = -k/2 â·b̂ with a = p1 - p0, b = p2 - p1, and a rest-angle variant
+// E = -k/2 cos(θ - θ0) = -k/2 âᵀ M b̂, M = [[cos θ0, sin θ0], [-sin θ0, cos θ0]].
+#pragma once
+
+#include <pinsim/plugin.hpp>
+#include <vector>
+
+namespace pinsim::plugins {
+
+class Bending {
+ public:
+  static PluginInfo info();
+  explicit Bending(const CreateContext& ctx);
+
+  /// Seed closed form, generalised by M: s = âᵀ M b̂,
+  ///   f0 = -k/(2a) (M b̂ - â s),  f2 = k/(2b) (Mᵀ â - b̂ s),  f1 = -f0 - f2.
+  void add_force(const StateView& s, ForceOut& f) const;
+  /// E = -k/2 sum s.
+  double energy(const StateView& s) const;
+  /// df/dx = k/2 d2s/dp2, from the second derivatives of s in (a, b) (see bending.cpp).
+  void add_dfdx(const StateView& s, Triplets& J) const;
+  /// No velocity dependence: df/dv = 0.
+  void add_dfdv(const StateView&, Triplets&) const {}
+
+  /// Rest angle θ0 of element e, radians (0 for the flat shape).
+  double rest_angle(std::size_t e) const;
+
+ private:
+  template <bool Flat>
+  void add_force_impl(const StateView& s, ForceOut& f) const;
+
+  double k_;
+  bool flat_ = true;           ///< every θ0 is 0: the seed's formula, no M
+  std::vector<uint32_t> idx_;  ///< 3 per element
+  std::vector<double> c0_;     ///< cos θ0 per element (empty when flat)
+  std::vector<double> s0_;     ///< sin θ0 per element (empty when flat)
+};
+
+}  // namespace pinsim::plugins

@@ -1,0 +1,36 @@
+// LinearSpring: Hooke springs between particle pairs, zero or finite rest length
+// (seed, "Zero rest-length spring between two particles" and "Linear spring with finite
+// rest-length, L").
+#pragma once
+
+#include <pinsim/plugin.hpp>
+#include <vector>
+
+namespace pinsim::plugins {
+
+class LinearSpring {
+ public:
+  static PluginInfo info();
+  explicit LinearSpring(const CreateContext& ctx);
+
+  /// f_k = -k (R - L) R̂ = -f_l; with L = 0 exactly f_k = -k (p_k - p_l).
+  void add_force(const StateView& s, ForceOut& f) const;
+  /// E = sum k/2 (R - L)^2.
+  double energy(const StateView& s) const;
+  /// df_k/dp_k = -K with K = k [R̂R̂ᵀ + (1 - L/R)(I - R̂R̂ᵀ)]; (k,l) blocks +K.
+  void add_dfdx(const StateView& s, Triplets& J) const;
+  /// No velocity dependence: df/dv = 0.
+  void add_dfdv(const StateView&, Triplets&) const {}
+
+  double rest_length(std::size_t e) const { return rest_[e]; }
+
+ private:
+  /// 2x2 stiffness block K of element e at positions x.
+  Mat2 block(const StateView& s, std::size_t e) const;
+
+  double k_;
+  std::vector<uint32_t> idx_;  ///< 2 per element
+  std::vector<double> rest_;   ///< L per element
+};
+
+}  // namespace pinsim::plugins
