@@ -1,0 +1,287 @@
+#include "obstacle_field.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <map>
+#include <set>
+
+namespace pinsim::sdf {
+namespace {
+
+inline Vec2 rot(double c, double s, const Vec2& v) {
+  return {c * v.x() - s * v.y(), s * v.x() + c * v.y()};
+}
+inline Vec2 rot_inv(double c, double s, const Vec2& v) {
+  return {c * v.x() + s * v.y(), -s * v.x() + c * v.y()};
+}
+
+using InputMap = std::map<std::string, std::vector<std::pair<double, bool>>>;
+
+InputMap parse_inputs(const JsonIn& scene, std::vector<std::string>& names) {
+  InputMap m;
+  if (!scene.has("inputs")) return m;
+  const auto& arr = scene.array("inputs");
+  std::vector<std::tuple<double, std::size_t, std::string, bool>> evs;
+  for (std::size_t i = 0; i < arr.size(); ++i) {
+    const JsonIn e(arr[i], "inputs[" + std::to_string(i) + "]", scene.ctx());
+    e.only({"t", "input", "action"});
+    const double t = e.number_if(
+        "t", [](double x) { return x >= 0.0; }, "must be >= 0");
+    const std::string in = e.string("input");
+    const std::string action = e.string("action");
+    if (action != "press" && action != "release")
+      e.fail("action", "expected \"press\" or \"release\", got \"" + action + "\"");
+    evs.emplace_back(t, i, in, action == "press");
+    names.push_back(in);
+  }
+  std::stable_sort(evs.begin(), evs.end(),
+                   [](const auto& a, const auto& b) { return std::get<0>(a) < std::get<0>(b); });
+  for (const auto& [t, i, in, press] : evs) m[in].emplace_back(t, press);
+  return m;
+}
+
+Material parse_material(const JsonIn& o) {
+  Material m;
+  if (!o.has("material")) return m;
+  const JsonIn j = o.object("material");
+  j.only({"restitution", "friction", "kick"});
+  m.restitution = j.number_if(
+      "restitution", 1.0, [](double x) { return x >= 0.0 && x <= 1.0; }, "must be in [0, 1]");
+  m.friction = j.number_if(
+      "friction", 0.0, [](double x) { return x >= 0.0; }, "must be >= 0");
+  m.kick = j.number_if(
+      "kick", 0.0, [](double x) { return x >= 0.0; }, "must be >= 0");
+  return m;
+}
+
+}  // namespace
+
+ObstacleField::ObstacleField(const nlohmann::json& scene_json, const std::string& ctx,
+                             const std::vector<Vec2>& extra, long grid_cells) {
+  const nlohmann::json empty = nlohmann::json::object();
+  const JsonIn scene(scene_json.is_object() ? scene_json : empty, "", ctx);
+  std::vector<std::string> input_names;
+  const InputMap inputs = parse_inputs(scene, input_names);
+  std::set<std::string> listened;
+  std::set<std::string> ids;
+  if (!scene.has("obstacles")) return;
+  const auto& arr = scene.array("obstacles");
+  for (std::size_t i = 0; i < arr.size(); ++i) {
+    const JsonIn o(arr[i], "obstacles[" + std::to_string(i) + "]", ctx);
+    o.only({"id", "shape", "material", "motion"});
+    Obstacle ob;
+    ob.id = o.string("id");
+    if (ob.id.empty()) o.fail("id", "must be a non-empty string");
+    if (!ids.insert(ob.id).second) o.fail("id", "duplicate obstacle id \"" + ob.id + "\"");
+    ob.shape = ShapeTree::parse(o.object("shape"));
+    ob.material = parse_material(o);
+    if (o.has("motion")) {
+      const JsonIn m = o.object("motion");
+      const std::string type = m.string("type");
+      auto pos = [](double x) { return x > 0.0; };
+      const Aabb local = ob.shape.bounds();
+      if (!local.bounded)
+        o.fail("shape", "a moving obstacle must be bounded (no half_plane or inside)");
+      std::string input;
+      if (type == "flipper") {
+        m.only({"type", "pivot", "rest_angle", "raised_angle", "angular_speed",
+                "return_angular_speed", "input"});
+        ob.motion = MotionType::kFlipper;
+        ob.pivot = m.vec2("pivot");
+        const double a0 = m.number("rest_angle"), a1 = m.number("raised_angle");
+        const double w = m.number_if("angular_speed", pos, "must be > 0");
+        const double w2 = m.number_if("return_angular_speed", w, pos, "must be > 0");
+        input = m.string("input");
+        const auto it = inputs.find(input);
+        ob.timeline.emplace(
+            a0, a1, w, w2,
+            it == inputs.end() ? std::vector<std::pair<double, bool>>{} : it->second);
+        for (int k = 0; k < 4; ++k) {
+          const Vec2 c((k & 1) ? local.hi.x() : local.lo.x(),
+                       (k & 2) ? local.hi.y() : local.lo.y());
+          ob.reach = std::max(ob.reach, c.norm());
+        }
+      } else if (type == "slider") {
+        m.only({"type", "offset", "speed", "return_speed", "input"});
+        ob.motion = MotionType::kSlider;
+        ob.offset = m.vec2("offset");
+        const double len = ob.offset.norm();
+        if (!(len > 0.0)) m.fail("offset", "must be non-zero");
+        const double s = m.number_if("speed", pos, "must be > 0");
+        const double s2 = m.number_if("return_speed", s, pos, "must be > 0");
+        input = m.string("input");
+        const auto it = inputs.find(input);
+        ob.timeline.emplace(
+            0.0, 1.0, s / len, s2 / len,
+            it == inputs.end() ? std::vector<std::pair<double, bool>>{} : it->second);
+        ob.sweep = local;
+        ob.sweep.add(local.lo + ob.offset);
+        ob.sweep.add(local.hi + ob.offset);
+      } else {
+        m.fail("type", "unknown motion type '" + type + "' (expected flipper or slider)");
+      }
+      listened.insert(input);
+      moving_.push_back(static_cast<uint32_t>(i));
+    } else {
+      static_.push_back(static_cast<uint32_t>(i));
+    }
+    obs_.push_back(std::move(ob));
+  }
+  for (std::size_t i = 0; i < input_names.size(); ++i) {
+    // inputs were validated in file order; find the first event naming an unknown input
+    if (!listened.count(input_names[i]))
+      throw Error(ctx + ": inputs[" + std::to_string(i) +
+                  "].input: no obstacle's motion listens to \"" + input_names[i] + "\"");
+  }
+  build_grid(extra, grid_cells);
+}
+
+void ObstacleField::build_grid(const std::vector<Vec2>& extra, long grid_cells) {
+  if (grid_cells <= 0 || static_.size() < 2) return;
+  Aabb region;
+  for (uint32_t k : static_) {
+    const Aabb b = obs_[k].shape.boundary_bounds();
+    if (b.bounded) region.add(b);
+  }
+  for (uint32_t k : moving_) {
+    const Obstacle& o = obs_[k];
+    if (o.motion == MotionType::kFlipper) {
+      region.add(o.pivot - Vec2(o.reach, o.reach));
+      region.add(o.pivot + Vec2(o.reach, o.reach));
+    } else {
+      region.add(o.sweep);
+    }
+  }
+  for (const Vec2& p : extra) region.add(p);
+  if (region.empty() || !region.bounded) return;
+  const Vec2 size = region.hi - region.lo;
+  const double margin = 0.02 * std::max(size.x(), size.y()) + 1e-9;
+  region.lo -= Vec2(margin, margin);
+  region.hi += Vec2(margin, margin);
+  const Vec2 ext = region.hi - region.lo;
+  double cell = std::sqrt(ext.x() * ext.y() / static_cast<double>(grid_cells));
+  if (!(cell > 0.0)) cell = std::max(ext.x(), ext.y()) / std::sqrt(static_cast<double>(grid_cells));
+  if (!(cell > 0.0)) return;
+  g_nx_ = std::clamp(static_cast<int>(std::ceil(ext.x() / cell)), 1, 4096);
+  g_ny_ = std::clamp(static_cast<int>(std::ceil(ext.y() / cell)), 1, 4096);
+  cell = std::max(ext.x() / g_nx_, ext.y() / g_ny_);
+  g_lo_ = region.lo;
+  g_inv_ = 1.0 / cell;
+  const double hd = 0.5 * cell * std::sqrt(2.0);
+  g_start_.assign(static_cast<std::size_t>(g_nx_) * g_ny_ + 1, 0);
+  std::vector<double> f(static_.size());
+  for (int iy = 0; iy < g_ny_; ++iy) {
+    for (int ix = 0; ix < g_nx_; ++ix) {
+      const Vec2 c = g_lo_ + Vec2((ix + 0.5) * cell, (iy + 0.5) * cell);
+      double ub = HUGE_VAL;
+      for (std::size_t q = 0; q < static_.size(); ++q) {
+        f[q] = obs_[static_[q]].shape.eval<false>(c).d;
+        ub = std::min(ub, f[q] + hd);
+      }
+      // 1e-9 relative slack against rounding in the bound itself
+      const double lim = ub + 1e-9 * (std::abs(ub) + hd);
+      for (std::size_t q = 0; q < static_.size(); ++q)
+        if (f[q] - hd <= lim) g_list_.push_back(static_[q]);
+      g_start_[static_cast<std::size_t>(iy) * g_nx_ + ix + 1] =
+          static_cast<uint32_t>(g_list_.size());
+    }
+  }
+}
+
+std::pair<std::size_t, double> ObstacleField::grid_stats() const {
+  const std::size_t cells = static_cast<std::size_t>(g_nx_) * g_ny_;
+  return {cells, cells ? static_cast<double>(g_list_.size()) / static_cast<double>(cells) : 0.0};
+}
+
+template <bool G>
+Sdf ObstacleField::eval_at(const Obstacle& o, const Vec2& p, double t) const {
+  switch (o.motion) {
+    case MotionType::kStatic:
+      return o.shape.eval<G>(p);
+    case MotionType::kFlipper: {
+      const double a = o.timeline->value(t);
+      const double c = std::cos(a), s = std::sin(a);
+      Sdf r = o.shape.eval<G>(rot_inv(c, s, p - o.pivot));
+      if constexpr (G) r.g = rot(c, s, r.g);
+      return r;
+    }
+    case MotionType::kSlider:
+      return o.shape.eval<G>(p - o.timeline->value(t) * o.offset);
+  }
+  return {};
+}
+
+Nearest ObstacleField::nearest(const Vec2& p, double t) const {
+  Nearest best;
+  const uint32_t* first = static_.data();
+  const uint32_t* last = static_.data() + static_.size();
+  if (g_nx_ > 0) {
+    const double fx = (p.x() - g_lo_.x()) * g_inv_, fy = (p.y() - g_lo_.y()) * g_inv_;
+    if (fx >= 0.0 && fy >= 0.0 && fx < g_nx_ && fy < g_ny_) {
+      const std::size_t c = static_cast<std::size_t>(fy) * g_nx_ + static_cast<std::size_t>(fx);
+      first = g_list_.data() + g_start_[c];
+      last = g_list_.data() + g_start_[c + 1];
+    }
+  }
+  for (const uint32_t* k = first; k != last; ++k) {
+    const double d = obs_[*k].shape.eval<false>(p).d;
+    if (d < best.d) {
+      best.d = d;
+      best.k = static_cast<int32_t>(*k);
+    }
+  }
+  for (uint32_t k : moving_) {
+    if (lower_bound(k, p) >= best.d) continue;
+    const double d = eval_at<false>(obs_[k], p, t).d;
+    if (d < best.d) {
+      best.d = d;
+      best.k = static_cast<int32_t>(k);
+    }
+  }
+  return best;
+}
+
+Sdf ObstacleField::eval(std::size_t k, const Vec2& p, double t) const {
+  return eval_at<true>(obs_[k], p, t);
+}
+
+Vec2 ObstacleField::velocity(std::size_t k, const Vec2& p, double t) const {
+  const Obstacle& o = obs_[k];
+  switch (o.motion) {
+    case MotionType::kStatic:
+      return Vec2::Zero();
+    case MotionType::kFlipper: {
+      const double w = o.timeline->rate(t);  // omega x r = w (-ry, rx)
+      const Vec2 r = p - o.pivot;
+      return Vec2(-w * r.y(), w * r.x());
+    }
+    case MotionType::kSlider:
+      return o.timeline->rate(t) * o.offset;
+  }
+  return Vec2::Zero();
+}
+
+double ObstacleField::speed_bound(std::size_t k, double t0, double t1) const {
+  const Obstacle& o = obs_[k];
+  switch (o.motion) {
+    case MotionType::kStatic:
+      return 0.0;
+    case MotionType::kFlipper:
+      return o.timeline->max_rate(t0, t1) * o.reach;
+    case MotionType::kSlider:
+      return o.timeline->max_rate(t0, t1) * o.offset.norm();
+  }
+  return 0.0;
+}
+
+double ObstacleField::lower_bound(std::size_t k, const Vec2& p) const {
+  const Obstacle& o = obs_[k];
+  double lb = -HUGE_VAL;
+  if (o.motion == MotionType::kFlipper)
+    lb = (p - o.pivot).norm() - o.reach;
+  else if (o.motion == MotionType::kSlider)
+    lb = o.sweep.distance(p);
+  return lb > 0.0 ? lb : -HUGE_VAL;
+}
+
+}  // namespace pinsim::sdf

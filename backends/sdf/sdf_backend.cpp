@@ -1,0 +1,309 @@
+#include "sdf_backend.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+namespace pinsim::sdf {
+
+PluginInfo SdfBackend::info() {
+  PluginInfo i;
+  i.name = "sdf";
+  i.version = "1.0.0";
+  i.doc =
+      "Signed-distance-field obstacles (circle, box, rounded box, capsule, tapered capsule, "
+      "polygon, arc, half-plane, union/intersection/subtraction, containers) with continuous "
+      "collision by sphere tracing sdf - r along each particle's path, impulses v' = v - "
+      "(1+e)(v_rel.n)n at the time of impact, scripted flippers and sliders, optional "
+      "particle-particle contacts.";
+  i.capabilities = PINSIM_CAP_PARTICLE_CONTACT;
+  i.params.push_back(real("depth_min", 1e-5)
+                         .min(0.0, true)
+                         .units("length")
+                         .doc("contact offset: the march stops this far from the surface, so a "
+                              "resting particle neither sinks nor chatters"));
+  i.params.push_back(real("march_tolerance", 0.1)
+                         .min(0.0, true)
+                         .max(1.0)
+                         .units("1")
+                         .doc("the march ends within this fraction of depth_min above the offset"));
+  i.params.push_back(
+      integer("max_collisions", 16)
+          .min(1)
+          .max(1e6)
+          .units("1")
+          .doc("impulses per particle per step; on reaching it the particle stays at its last safe "
+               "position for the rest of the step"));
+  i.params.push_back(
+      integer("max_iterations", 200)
+          .min(1)
+          .max(1e7)
+          .units("1")
+          .doc("march iterations per particle per step; same fallback as max_collisions"));
+  i.params.push_back(
+      real("rest_speed", 0.0)
+          .min(0.0)
+          .units("length/s")
+          .doc("impacts slower than this are resting contacts: restitution 0, no kick, no event"));
+  i.params.push_back(integer("grid_cells", 16384)
+                         .min(0)
+                         .max(1e7)
+                         .units("1")
+                         .doc("target cell count of the grid over static obstacles (0: no grid)"));
+  return i;
+}
+
+SdfBackend::SdfBackend(const CreateContext& ctx) {
+  const Params& p = ctx.params;
+  delta_ = p.real("depth_min");
+  tol_ = p.real("march_tolerance") * delta_;
+  max_collisions_ = static_cast<int>(p.integer("max_collisions"));
+  max_iterations_ = static_cast<int>(p.integer("max_iterations"));
+  rest_speed_ = p.real("rest_speed");
+  std::vector<Vec2> pts;
+  for (std::size_t i = 0; i < ctx.initial.n; ++i) pts.push_back(ctx.initial.x.col(i));
+  field_ = ObstacleField(ctx.scene, ctx.context, pts, p.integer("grid_cells"));
+  if (ctx.scene.is_object() && ctx.scene.contains("contacts") && !ctx.scene["contacts"].is_null()) {
+    const JsonIn scene(ctx.scene, "", ctx.context);
+    const JsonIn c = scene.object("contacts");
+    c.only({"particles", "restitution"});
+    particle_contacts_ = c.boolean("particles", false);
+    particle_e_ = c.number_if(
+        "restitution", 1.0, [](double x) { return x >= 0.0 && x <= 1.0; }, "must be in [0, 1]");
+  }
+  speed_bound_.assign(field_.size(), 0.0);
+}
+
+double SdfBackend::distance(const Vec2& p, double t, int64_t* obstacle) const {
+  const Nearest n = field_.nearest(p, t);
+  if (obstacle) *obstacle = n.k;
+  return n.d;
+}
+
+// Sphere tracing (conservative advancement). Along the path x(s) = x + v s the clearance
+// d(s) = min_k sdf_k(x(s), t + s) - r changes at most at L = |v| + U, U the largest speed of
+// a nearby moving obstacle (an exact SDF is 1-Lipschitz in space; a rigid motion moves the
+// field at a fixed point by at most the speed of its fastest point). So the path is free of
+// contact for s < (d - depth_min) / L, and that is the step. Within the band
+// d <= depth_min + tol the nearest obstacle's normal n = grad sdf and its velocity u at the
+// contact point decide: approaching ((v - u).n < 0) gives the impulse
+//   v' = v - (1 + e)((v - u).n) n  - min(mu j, |v_t|) t̂  + kick n,
+// otherwise the particle moves on by at most max(d, depth_min), which cannot take it deeper
+// than depth_min inside the surface.
+bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
+                       EventSink& ev) {
+  double remaining = dur;
+  const auto& moving = field_.moving();
+  bool first = true;
+  while (remaining > 0.0) {
+    if (b.iterations >= max_iterations_ || b.collisions >= max_collisions_) {
+      ++stats_.cap_hits;  // fallback: stay at the last safe position for the rest of the step
+      return false;
+    }
+    ++b.iterations;
+    ++stats_.queries;
+    const Nearest nn = field_.nearest(x, t);
+    if (nn.k < 0) {
+      x += v * remaining;
+      return true;
+    }
+    const double d = nn.d - r;
+    const double speed = v.norm();
+    double u_max = 0.0;
+    for (uint32_t k : moving) {
+      const double uk = speed_bound_[k];
+      if (uk > 0.0 && field_.lower_bound(k, x) - r - delta_ <= (speed + uk) * remaining)
+        u_max = std::max(u_max, uk);
+    }
+    const double lip = speed + u_max;
+    if (!(lip > 0.0)) return true;  // nothing moves relative to anything
+    if (d > delta_ + tol_) {
+      const double step = (d - delta_) / lip;
+      if (step >= remaining) {
+        if (first) ++stats_.skipped;
+        x += v * remaining;
+        return true;
+      }
+      x += v * step;
+      t += step;
+      remaining -= step;
+      first = false;
+      continue;
+    }
+    first = false;
+    const auto k = static_cast<std::size_t>(nn.k);
+    const Sdf sd = field_.eval(k, x, t);
+    const Vec2 n = sd.g;
+    const Vec2 pc = x - sd.d * n;
+    const Vec2 u = field_.velocity(k, pc, t);
+    const Vec2 vr = v - u;
+    const double vn = vr.dot(n);
+    if (vn < 0.0) {
+      const Material& m = field_.obstacle(k).material;
+      const bool resting = -vn < rest_speed_;
+      const double jn = -(1.0 + (resting ? 0.0 : m.restitution)) * vn;
+      Vec2 dv = jn * n;
+      if (m.friction > 0.0) {
+        const Vec2 vt = vr - vn * n;
+        const double vtn = vt.norm();
+        if (vtn > 0.0) dv -= std::min(m.friction * jn, vtn) / vtn * vt;
+      }
+      if (!resting && m.kick > 0.0) dv += m.kick * n;
+      v += dv;
+      ++b.collisions;
+      ++stats_.contacts;
+      if (!resting) {
+        pinsim_event e{};
+        e.t = t;
+        e.particle = static_cast<int64_t>(i);
+        e.obstacle = nn.k;
+        e.other = -1;
+        e.point[0] = pc.x();
+        e.point[1] = pc.y();
+        e.normal[0] = n.x();
+        e.normal[1] = n.y();
+        e.vn_before = vn;
+        e.vn_after = (v - u).dot(n);
+        ev.emit(e);
+      }
+      if (d < delta_) x += (delta_ - d) * n;  // back to the contact offset
+      continue;
+    }
+    const double step = std::max(d, delta_) / lip;
+    if (step >= remaining) {
+      x += v * remaining;
+      return true;
+    }
+    x += v * step;
+    t += step;
+    remaining -= step;
+  }
+  return true;
+}
+
+// Particle-particle contacts, one pass per step: candidate pairs by sweep and prune over
+// the boxes swept during the step; for each pair the time of impact tau of two discs in
+// linear motion, |dx + dv tau| = r_i + r_j, i.e. a tau^2 + 2 b tau + c = 0 with a = dv.dv,
+// b = dx.dv, c = dx.dx - (r_i + r_j)^2, tau = (-b - sqrt(b^2 - a c)) / a. Pairs are handled in
+// order of tau with the velocities as updated by earlier pairs; the impulse
+// J = -(1 + e) vn / (w_i + w_j) (w = inverse masses) becomes a velocity change at tau that
+// the obstacle march applies on the way. Obstacle contacts inside the step do not
+// re-schedule pairs.
+void SdfBackend::schedule_pairs(const MutableState& s, double dt, EventSink& ev) {
+  const std::size_t n = s.n;
+  changes_.assign(n, {});
+  struct Box {
+    double x0, x1, y0, y1;
+    uint32_t i;
+  };
+  std::vector<Box> boxes(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec2 a = s.x.col(i), b = a + (s.inv_mass[i] > 0.0 ? Vec2(dt * s.v.col(i)) : Vec2::Zero());
+    const double r = s.radius[i];
+    boxes[i] = {std::min(a.x(), b.x()) - r, std::max(a.x(), b.x()) + r, std::min(a.y(), b.y()) - r,
+                std::max(a.y(), b.y()) + r, static_cast<uint32_t>(i)};
+  }
+  std::sort(boxes.begin(), boxes.end(),
+            [](const Box& a, const Box& b) { return a.x0 < b.x0 || (a.x0 == b.x0 && a.i < b.i); });
+  std::vector<Vec2> xr(n), vc(n);
+  std::vector<double> tr(n, 0.0);
+  for (std::size_t i = 0; i < n; ++i) {
+    xr[i] = s.x.col(i);
+    vc[i] = s.inv_mass[i] > 0.0 ? Vec2(s.v.col(i)) : Vec2::Zero();
+  }
+  // time of impact after tau0 for i and j moving linearly from their reference states
+  auto toi = [&](uint32_t i, uint32_t j, double tau0, double& tau) {
+    const Vec2 pi = xr[i] + vc[i] * (tau0 - tr[i]), pj = xr[j] + vc[j] * (tau0 - tr[j]);
+    const Vec2 dx = pi - pj, dv = vc[i] - vc[j];
+    const double rr = s.radius[i] + s.radius[j];
+    const double a = dv.squaredNorm(), b = dx.dot(dv), c = dx.squaredNorm() - rr * rr;
+    if (b >= 0.0) return false;  // not approaching
+    if (c <= 0.0) {
+      tau = tau0;
+      return true;
+    }
+    const double disc = b * b - a * c;
+    if (disc < 0.0) return false;
+    tau = tau0 + c / (-b + std::sqrt(disc));  // = (-b - sqrt(disc)) / a, without cancellation
+    return tau <= dt;
+  };
+  struct Hit {
+    double tau;
+    uint32_t i, j;
+  };
+  std::vector<Hit> hits;
+  for (std::size_t a = 0; a < n; ++a) {
+    for (std::size_t b = a + 1; b < n && boxes[b].x0 <= boxes[a].x1; ++b) {
+      if (boxes[b].y0 > boxes[a].y1 || boxes[b].y1 < boxes[a].y0) continue;
+      uint32_t i = std::min(boxes[a].i, boxes[b].i), j = std::max(boxes[a].i, boxes[b].i);
+      if (s.inv_mass[i] == 0.0 && s.inv_mass[j] == 0.0) continue;
+      double tau = 0.0;
+      if (toi(i, j, 0.0, tau)) hits.push_back({tau, i, j});
+    }
+  }
+  std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
+    return a.tau < b.tau || (a.tau == b.tau && (a.i < b.i || (a.i == b.i && a.j < b.j)));
+  });
+  for (const Hit& h : hits) {
+    const uint32_t i = h.i, j = h.j;
+    double tau = 0.0;
+    if (!toi(i, j, std::max(tr[i], tr[j]), tau)) continue;
+    const Vec2 pi = xr[i] + vc[i] * (tau - tr[i]), pj = xr[j] + vc[j] * (tau - tr[j]);
+    const Vec2 dx = pi - pj;
+    const double l = dx.norm();
+    const Vec2 nrm = l > 0.0 ? Vec2(dx / l) : Vec2(0.0, 1.0);
+    const double vn = (vc[i] - vc[j]).dot(nrm);
+    if (vn >= 0.0) continue;
+    const double wi = s.inv_mass[i], wj = s.inv_mass[j];
+    const double jn = -(1.0 + particle_e_) * vn / (wi + wj);
+    const Vec2 dvi = jn * wi * nrm, dvj = -jn * wj * nrm;
+    xr[i] = pi;
+    xr[j] = pj;
+    tr[i] = tr[j] = tau;
+    vc[i] += dvi;
+    vc[j] += dvj;
+    if (wi > 0.0) changes_[i].push_back({tau, dvi});
+    if (wj > 0.0) changes_[j].push_back({tau, dvj});
+    ++stats_.pair_contacts;
+    pinsim_event e{};
+    e.t = s.t + tau;
+    e.particle = i;
+    e.obstacle = -1;
+    e.other = j;
+    const Vec2 pt = pj + s.radius[j] * nrm;
+    e.point[0] = pt.x();
+    e.point[1] = pt.y();
+    e.normal[0] = nrm.x();
+    e.normal[1] = nrm.y();
+    e.vn_before = vn;
+    e.vn_after = (vc[i] - vc[j]).dot(nrm);
+    ev.emit(e);
+  }
+}
+
+void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
+  if (!(dt > 0.0)) return;
+  const double t0 = s.t;
+  for (uint32_t k : field_.moving()) speed_bound_[k] = field_.speed_bound(k, t0, t0 + dt);
+  const bool pairs = particle_contacts_ && s.n > 1;
+  if (pairs) schedule_pairs(s, dt, ev);
+  for (std::size_t i = 0; i < s.n; ++i) {
+    if (!(s.inv_mass[i] > 0.0)) continue;  // pinned particles do not move
+    ++stats_.particle_steps;
+    Vec2 x = s.x.col(i), v = s.v.col(i);
+    const double r = s.radius[i];
+    Budget b;
+    double done = 0.0;
+    if (pairs) {
+      for (const Change& c : changes_[i]) {
+        march(i, x, v, r, t0 + done, c.tau - done, b, ev);
+        v += c.dv;
+        done = c.tau;
+      }
+    }
+    march(i, x, v, r, t0 + done, dt - done, b, ev);
+    s.x.col(i) = x;
+    s.v.col(i) = v;
+  }
+}
+
+}  // namespace pinsim::sdf

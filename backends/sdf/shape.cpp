@@ -1,0 +1,479 @@
+#include "shape.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace pinsim::sdf {
+namespace {
+
+constexpr int kMaxDepth = 32;
+
+/// Rotates v by the angle with cos c, sin s.
+inline Vec2 rot(double c, double s, const Vec2& v) {
+  return {c * v.x() - s * v.y(), s * v.x() + c * v.y()};
+}
+/// Rotates v by minus that angle.
+inline Vec2 rot_inv(double c, double s, const Vec2& v) {
+  return {c * v.x() + s * v.y(), -s * v.x() + c * v.y()};
+}
+inline double sgn(double x) { return x < 0.0 ? -1.0 : 1.0; }
+inline double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+
+/// True if closed segments pq and rs share a point.
+bool segments_touch(const Vec2& p, const Vec2& q, const Vec2& r, const Vec2& s) {
+  auto orient = [](const Vec2& a, const Vec2& b, const Vec2& c) {
+    const double v = cross(b - a, c - a);
+    return v > 0.0 ? 1 : (v < 0.0 ? -1 : 0);
+  };
+  auto on_seg = [](const Vec2& a, const Vec2& b, const Vec2& c) {
+    return std::min(a.x(), b.x()) <= c.x() && c.x() <= std::max(a.x(), b.x()) &&
+           std::min(a.y(), b.y()) <= c.y() && c.y() <= std::max(a.y(), b.y());
+  };
+  const int o1 = orient(p, q, r), o2 = orient(p, q, s), o3 = orient(r, s, p), o4 = orient(r, s, q);
+  if (o1 != o2 && o3 != o4) return true;
+  return (o1 == 0 && on_seg(p, q, r)) || (o2 == 0 && on_seg(p, q, s)) ||
+         (o3 == 0 && on_seg(r, s, p)) || (o4 == 0 && on_seg(r, s, q));
+}
+
+Aabb transform_box(const Aabb& b, double c, double s, const Vec2& t) {
+  if (!b.bounded || b.empty()) return b;
+  Aabb out;
+  for (int k = 0; k < 4; ++k) {
+    const Vec2 corner((k & 1) ? b.hi.x() : b.lo.x(), (k & 2) ? b.hi.y() : b.lo.y());
+    out.add(rot(c, s, corner) + t);
+  }
+  return out;
+}
+
+}  // namespace
+
+ShapeTree ShapeTree::parse(const JsonIn& j) {
+  ShapeTree t;
+  t.root_ = t.parse_node(j, 0);
+  return t;
+}
+
+uint32_t ShapeTree::parse_node(const JsonIn& j, int depth) {
+  if (!j.json().is_object()) j.fail("", "expected a shape object, got " + JsonIn::show(j.json()));
+  if (depth > kMaxDepth) j.fail("", "shapes nested deeper than 32 levels");
+  const std::string type = j.string("type");
+  ShapeNode n;
+  auto pos = [](double x) { return x > 0.0; };
+  auto nonneg = [](double x) { return x >= 0.0; };
+
+  if (j.has("transform")) {
+    const JsonIn tr = j.object("transform");
+    tr.only({"translate", "rotate"});
+    n.transformed = true;
+    n.tt = tr.vec2("translate", Vec2(0.0, 0.0));
+    const double a = tr.number("rotate", 0.0);
+    n.tc = std::cos(a);
+    n.ts = std::sin(a);
+  }
+
+  if (type == "circle") {
+    j.only({"type", "transform", "center", "radius"});
+    n.type = ShapeType::kCircle;
+    n.c = j.vec2("center");
+    n.r0 = j.number_if("radius", pos, "must be > 0");
+  } else if (type == "box" || type == "rounded_box") {
+    const bool rounded = type == "rounded_box";
+    if (rounded)
+      j.only({"type", "transform", "center", "half_size", "angle", "corner_radius"});
+    else
+      j.only({"type", "transform", "center", "half_size", "angle"});
+    n.type = rounded ? ShapeType::kRoundedBox : ShapeType::kBox;
+    n.c = j.vec2("center");
+    const Vec2 h = j.vec2("half_size");
+    if (!(h.x() > 0.0 && h.y() > 0.0))
+      j.fail("half_size",
+             "both components must be > 0, got " + JsonIn::show(j.json()["half_size"]));
+    const double a = j.number("angle", 0.0);
+    n.ca = std::cos(a);
+    n.sa = std::sin(a);
+    if (rounded) {
+      const double cr = j.number("corner_radius");
+      if (!(cr >= 0.0 && cr <= std::min(h.x(), h.y())))
+        j.fail("corner_radius", "must be in [0, min(half_size)] = [0, " +
+                                    std::to_string(std::min(h.x(), h.y())) + "], got " +
+                                    JsonIn::show(j.json()["corner_radius"]));
+      n.r0 = cr;
+      n.b = h - Vec2(cr, cr);
+    } else {
+      n.b = h;
+    }
+  } else if (type == "capsule") {
+    j.only({"type", "transform", "a", "b", "radius"});
+    n.type = ShapeType::kCapsule;
+    n.c = j.vec2("a");
+    n.b = j.vec2("b") - n.c;
+    n.r0 = j.number_if("radius", nonneg, "must be >= 0");
+    const double bb = n.b.squaredNorm();
+    n.k0 = bb > 0.0 ? 1.0 / bb : 0.0;
+    if (bb > 0.0) {
+      n.ca = n.b.x() / std::sqrt(bb);
+      n.sa = n.b.y() / std::sqrt(bb);
+    }
+  } else if (type == "tapered_capsule") {
+    j.only({"type", "transform", "a", "b", "radius_a", "radius_b"});
+    n.type = ShapeType::kTaperedCapsule;
+    n.c = j.vec2("a");
+    const Vec2 ab = j.vec2("b") - n.c;
+    n.r0 = j.number_if("radius_a", nonneg, "must be >= 0");
+    n.r1 = j.number_if("radius_b", nonneg, "must be >= 0");
+    n.h = ab.norm();
+    if (!(std::abs(n.r0 - n.r1) < n.h))
+      j.fail("b", "need |radius_a - radius_b| < |b - a| (one disc may not contain the other)");
+    n.b = ab / n.h;                       // axis (local +y)
+    n.k0 = (n.r0 - n.r1) / n.h;           // iq's b
+    n.k1 = std::sqrt(1.0 - n.k0 * n.k0);  // iq's a
+  } else if (type == "polygon") {
+    j.only({"type", "transform", "points"});
+    n.type = ShapeType::kPolygon;
+    const auto& pts = j.array("points");
+    if (pts.size() < 3)
+      j.fail("points", "need at least 3 points, got " + std::to_string(pts.size()));
+    std::vector<Vec2> v;
+    for (std::size_t i = 0; i < pts.size(); ++i) {
+      if (!JsonIn::is_vec2(pts[i]))
+        j.fail("points[" + std::to_string(i) + "]", "expected [x, y], got " + JsonIn::show(pts[i]));
+      v.emplace_back(pts[i][0].get<double>(), pts[i][1].get<double>());
+    }
+    double area2 = 0.0;
+    for (std::size_t i = 0; i < v.size(); ++i) area2 += cross(v[i], v[(i + 1) % v.size()]);
+    if (!(std::abs(area2) > 0.0)) j.fail("points", "polygon has zero area");
+    const std::size_t m = v.size();
+    for (std::size_t i = 0; i < m; ++i) {
+      if (v[i] == v[(i + 1) % m])
+        j.fail("points[" + std::to_string(i) + "]", "repeats the next point");
+      for (std::size_t k = i + 2; k < m; ++k) {
+        if (i == 0 && k == m - 1) continue;  // adjacent through the wrap
+        if (segments_touch(v[i], v[(i + 1) % m], v[k], v[(k + 1) % m]))
+          j.fail("points", "polygon is not simple: edge " + std::to_string(i) + " touches edge " +
+                               std::to_string(k));
+      }
+    }
+    if (area2 < 0.0) std::reverse(v.begin(), v.end());  // counter-clockwise from here on
+    n.first = static_cast<uint32_t>(verts_.size());
+    n.count = static_cast<uint32_t>(m);
+    verts_.insert(verts_.end(), v.begin(), v.end());
+  } else if (type == "arc") {
+    j.only({"type", "transform", "center", "radius", "start_angle", "end_angle", "thickness"});
+    n.type = ShapeType::kArc;
+    n.c = j.vec2("center");
+    n.r0 = j.number_if("radius", pos, "must be > 0");
+    n.r1 = 0.5 * j.number_if("thickness", pos, "must be > 0");
+    const double a0 = j.number("start_angle");
+    const double a1 = j.number("end_angle");
+    const double sweep = a1 - a0;
+    if (!(sweep > 0.0 && sweep <= 2.0 * std::numbers::pi + 1e-12))
+      j.fail("end_angle",
+             "end_angle - start_angle must be in (0, 2 pi], got " + std::to_string(sweep));
+    const double mid = a0 + 0.5 * sweep;
+    n.ca = std::cos(mid);  // local +y is the middle direction
+    n.sa = std::sin(mid);
+    n.k0 = std::sin(0.5 * std::min(sweep, 2.0 * std::numbers::pi));
+    n.k1 = std::cos(0.5 * std::min(sweep, 2.0 * std::numbers::pi));
+  } else if (type == "half_plane") {
+    j.only({"type", "transform", "point", "normal"});
+    n.type = ShapeType::kHalfPlane;
+    n.c = j.vec2("point");
+    const Vec2 nn = j.vec2("normal");
+    if (!(nn.norm() > 0.0)) j.fail("normal", "must be non-zero");
+    n.b = nn / nn.norm();
+  } else if (type == "union" || type == "intersection" || type == "subtraction") {
+    j.only({"type", "transform", "shapes"});
+    n.type = type == "union"          ? ShapeType::kUnion
+             : type == "intersection" ? ShapeType::kIntersection
+                                      : ShapeType::kSubtraction;
+    const auto& arr = j.array("shapes");
+    const std::size_t need = n.type == ShapeType::kSubtraction ? 2 : 1;
+    if (arr.size() < need)
+      j.fail("shapes", "need at least " + std::to_string(need) + " shapes, got " +
+                           std::to_string(arr.size()));
+    std::vector<uint32_t> kids;
+    for (std::size_t i = 0; i < arr.size(); ++i)
+      kids.push_back(parse_node(JsonIn(arr[i], j.at("shapes[" + std::to_string(i) + "]"), j.ctx()),
+                                depth + 1));
+    n.first = static_cast<uint32_t>(children_.size());
+    n.count = static_cast<uint32_t>(kids.size());
+    children_.insert(children_.end(), kids.begin(), kids.end());
+  } else if (type == "inside") {
+    j.only({"type", "transform", "shape"});
+    n.type = ShapeType::kInside;
+    const uint32_t kid = parse_node(j.object("shape"), depth + 1);
+    n.first = static_cast<uint32_t>(children_.size());
+    n.count = 1;
+    children_.push_back(kid);
+  } else {
+    j.fail("type",
+           "unknown shape type '" + type +
+               "' (expected circle, box, rounded_box, capsule, tapered_capsule, polygon, arc, "
+               "half_plane, union, intersection, subtraction, inside)");
+  }
+  nodes_.push_back(n);
+  return static_cast<uint32_t>(nodes_.size() - 1);
+}
+
+// Exact SDFs after Inigo Quilez, "2D distance functions" (iquilezles.org/articles/distfunctions2d):
+// circle |p-c| - r; box |max(q,0)| + min(max(qx,qy),0) with q = |p| - h; rounded box = box with
+// h - rc, minus rc; segment/capsule |p - a - h (b-a)| - r, h = clamp((p-a).(b-a)/|b-a|^2, 0, 1);
+// uneven capsule; polygon (closest edge, sign by crossing count); arc. Gradients are the
+// unit vector from the closest boundary point; at singular points (centres, medial axes,
+// points on a zero-thickness segment) a fixed, deterministic choice is made.
+template <bool G>
+Sdf ShapeTree::eval_primitive(const ShapeNode& n, const Vec2& p) const {
+  Sdf out;
+  switch (n.type) {
+    case ShapeType::kCircle: {
+      const Vec2 q = p - n.c;
+      const double l = q.norm();
+      out.d = l - n.r0;
+      if constexpr (G) out.g = l > 0.0 ? Vec2(q / l) : Vec2(0.0, 1.0);
+      break;
+    }
+    case ShapeType::kBox:
+    case ShapeType::kRoundedBox: {
+      const Vec2 q = rot_inv(n.ca, n.sa, p - n.c);
+      const double wx = std::abs(q.x()) - n.b.x(), wy = std::abs(q.y()) - n.b.y();
+      const double ox = std::max(wx, 0.0), oy = std::max(wy, 0.0);
+      const double outside = std::sqrt(ox * ox + oy * oy);
+      out.d = outside + std::min(std::max(wx, wy), 0.0) - n.r0;
+      if constexpr (G) {
+        Vec2 g;
+        if (outside > 0.0)
+          g = Vec2(ox * sgn(q.x()), oy * sgn(q.y())) / outside;
+        else if (wx >= wy)
+          g = Vec2(sgn(q.x()), 0.0);
+        else
+          g = Vec2(0.0, sgn(q.y()));
+        out.g = rot(n.ca, n.sa, g);
+      }
+      break;
+    }
+    case ShapeType::kCapsule: {
+      const Vec2 w = p - n.c;
+      const double h = std::clamp(w.dot(n.b) * n.k0, 0.0, 1.0);
+      const Vec2 q = w - n.b * h;
+      const double l = q.norm();
+      out.d = l - n.r0;
+      if constexpr (G) out.g = l > 0.0 ? Vec2(q / l) : Vec2(-n.sa, n.ca);
+      break;
+    }
+    case ShapeType::kTaperedCapsule: {
+      const Vec2 w = p - n.c;
+      const Vec2 ex(n.b.y(), -n.b.x());
+      const double lx = w.dot(ex), ly = w.dot(n.b);
+      const double px = std::abs(lx);
+      const double k = -n.k0 * px + n.k1 * ly;
+      Vec2 g;
+      if (k < 0.0) {
+        const double l = std::hypot(px, ly);
+        out.d = l - n.r0;
+        g = l > 0.0 ? Vec2(px / l, ly / l) : Vec2(0.0, -1.0);
+      } else if (k > n.k1 * n.h) {
+        const double l = std::hypot(px, ly - n.h);
+        out.d = l - n.r1;
+        g = l > 0.0 ? Vec2(px / l, (ly - n.h) / l) : Vec2(0.0, 1.0);
+      } else {
+        out.d = n.k1 * px + n.k0 * ly - n.r0;
+        g = Vec2(n.k1, n.k0);
+      }
+      if constexpr (G) out.g = (sgn(lx) * g.x()) * ex + g.y() * n.b;
+      break;
+    }
+    case ShapeType::kPolygon: {
+      const Vec2* v = verts_.data() + n.first;
+      const uint32_t m = n.count;
+      double best = HUGE_VAL;
+      Vec2 bq(0.0, 0.0);
+      uint32_t be = 0;
+      bool inside = false;
+      for (uint32_t i = 0, j = m - 1; i < m; j = i, ++i) {
+        // edge from v[i] to v[j] (iq's loop); crossing test on the same edge
+        const Vec2 e = v[j] - v[i];
+        const Vec2 w = p - v[i];
+        const double h = std::clamp(w.dot(e) / e.squaredNorm(), 0.0, 1.0);
+        const Vec2 q = w - e * h;
+        const double dd = q.squaredNorm();
+        if (dd < best) {
+          best = dd;
+          bq = q;
+          be = i;
+        }
+        const bool c1 = p.y() >= v[i].y(), c2 = p.y()<v[j].y(), c3 = e.x() * w.y()> e.y() * w.x();
+        if ((c1 && c2 && c3) || (!c1 && !c2 && !c3)) inside = !inside;
+      }
+      const double s = inside ? -1.0 : 1.0;
+      const double l = std::sqrt(best);
+      out.d = s * l;
+      if constexpr (G) {
+        if (l > 0.0) {
+          out.g = s * bq / l;
+        } else {  // on the boundary: outward normal of the edge (counter-clockwise polygon)
+          const Vec2 e = v[be] - v[be == 0 ? m - 1 : be - 1];
+          out.g = Vec2(e.y(), -e.x()) / e.norm();
+        }
+      }
+      break;
+    }
+    case ShapeType::kArc: {
+      const Vec2 w = p - n.c;
+      const Vec2 ey(n.ca, n.sa), ex(n.sa, -n.ca);
+      const double lx = w.dot(ex), ly = w.dot(ey);
+      const double px = std::abs(lx);
+      Vec2 g;
+      if (n.k1 * px > n.k0 * ly) {  // beyond the aperture: nearest is an end point
+        const Vec2 q(px - n.k0 * n.r0, ly - n.k1 * n.r0);
+        const double l = q.norm();
+        out.d = l - n.r1;
+        g = l > 0.0 ? Vec2(q / l) : Vec2(n.k0, n.k1);
+      } else {
+        const double l = std::hypot(px, ly);
+        out.d = std::abs(l - n.r0) - n.r1;
+        g = l > 0.0 ? Vec2(Vec2(px, ly) * (sgn(l - n.r0) / l)) : Vec2(0.0, -1.0);
+      }
+      if constexpr (G) out.g = (sgn(lx) * g.x()) * ex + g.y() * ey;
+      break;
+    }
+    case ShapeType::kHalfPlane: {
+      out.d = (p - n.c).dot(n.b);
+      if constexpr (G) out.g = n.b;
+      break;
+    }
+    default:
+      break;
+  }
+  return out;
+}
+
+template <bool G>
+Sdf ShapeTree::eval_node(uint32_t i, const Vec2& pw) const {
+  const ShapeNode& n = nodes_[i];
+  const Vec2 p = n.transformed ? rot_inv(n.tc, n.ts, pw - n.tt) : pw;
+  Sdf out;
+  switch (n.type) {
+    case ShapeType::kUnion: {
+      for (uint32_t k = 0; k < n.count; ++k) {
+        const Sdf s = eval_node<G>(children_[n.first + k], p);
+        if (k == 0 || s.d < out.d) out = s;
+      }
+      break;
+    }
+    case ShapeType::kIntersection: {
+      for (uint32_t k = 0; k < n.count; ++k) {
+        const Sdf s = eval_node<G>(children_[n.first + k], p);
+        if (k == 0 || s.d > out.d) out = s;
+      }
+      break;
+    }
+    case ShapeType::kSubtraction: {
+      out = eval_node<G>(children_[n.first], p);
+      for (uint32_t k = 1; k < n.count; ++k) {
+        Sdf s = eval_node<G>(children_[n.first + k], p);
+        if (-s.d > out.d) {
+          out.d = -s.d;
+          if constexpr (G) out.g = -s.g;
+        }
+      }
+      break;
+    }
+    case ShapeType::kInside: {
+      out = eval_node<G>(children_[n.first], p);
+      out.d = -out.d;
+      if constexpr (G) out.g = -out.g;
+      break;
+    }
+    default:
+      out = eval_primitive<G>(n, p);
+  }
+  if constexpr (G)
+    if (n.transformed) out.g = rot(n.tc, n.ts, out.g);
+  return out;
+}
+
+template Sdf ShapeTree::eval_node<true>(uint32_t, const Vec2&) const;
+template Sdf ShapeTree::eval_node<false>(uint32_t, const Vec2&) const;
+
+Aabb ShapeTree::bounds_node(uint32_t i) const {
+  const ShapeNode& n = nodes_[i];
+  Aabb b;
+  switch (n.type) {
+    case ShapeType::kCircle:
+      b.add(n.c - Vec2(n.r0, n.r0));
+      b.add(n.c + Vec2(n.r0, n.r0));
+      break;
+    case ShapeType::kBox:
+    case ShapeType::kRoundedBox: {
+      const Vec2 h = n.b + Vec2(n.r0, n.r0);
+      for (int k = 0; k < 4; ++k)
+        b.add(n.c + rot(n.ca, n.sa, Vec2((k & 1) ? h.x() : -h.x(), (k & 2) ? h.y() : -h.y())));
+      break;
+    }
+    case ShapeType::kCapsule:
+      b.add(n.c - Vec2(n.r0, n.r0));
+      b.add(n.c + Vec2(n.r0, n.r0));
+      b.add(n.c + n.b - Vec2(n.r0, n.r0));
+      b.add(n.c + n.b + Vec2(n.r0, n.r0));
+      break;
+    case ShapeType::kTaperedCapsule:
+      b.add(n.c - Vec2(n.r0, n.r0));
+      b.add(n.c + Vec2(n.r0, n.r0));
+      b.add(n.c + n.h * n.b - Vec2(n.r1, n.r1));
+      b.add(n.c + n.h * n.b + Vec2(n.r1, n.r1));
+      break;
+    case ShapeType::kPolygon:
+      for (uint32_t k = 0; k < n.count; ++k) b.add(verts_[n.first + k]);
+      break;
+    case ShapeType::kArc: {
+      const double r = n.r0 + n.r1;
+      b.add(n.c - Vec2(r, r));
+      b.add(n.c + Vec2(r, r));
+      break;
+    }
+    case ShapeType::kHalfPlane:
+    case ShapeType::kInside:
+      b = Aabb::everything();
+      break;
+    case ShapeType::kUnion:
+      for (uint32_t k = 0; k < n.count; ++k) b.add(bounds_node(children_[n.first + k]));
+      break;
+    case ShapeType::kIntersection: {
+      b = Aabb::everything();
+      for (uint32_t k = 0; k < n.count; ++k) {
+        const Aabb c = bounds_node(children_[n.first + k]);
+        if (!c.bounded) continue;
+        if (!b.bounded) {
+          b = c;
+        } else {
+          b.lo = b.lo.cwiseMax(c.lo);
+          b.hi = b.hi.cwiseMin(c.hi);
+        }
+      }
+      break;
+    }
+    case ShapeType::kSubtraction:
+      b = bounds_node(children_[n.first]);
+      break;
+  }
+  return n.transformed ? transform_box(b, n.tc, n.ts, n.tt) : b;
+}
+
+Aabb ShapeTree::boundary_bounds() const {
+  const ShapeNode& n = nodes_[root_];
+  if (n.type == ShapeType::kInside) {
+    const Aabb b = bounds_node(children_[n.first]);
+    return n.transformed ? transform_box(b, n.tc, n.ts, n.tt) : b;
+  }
+  return bounds();
+}
+
+std::size_t ShapeTree::primitives() const {
+  std::size_t k = 0;
+  for (const auto& n : nodes_)
+    if (n.type < ShapeType::kUnion) ++k;
+  return k;
+}
+
+}  // namespace pinsim::sdf

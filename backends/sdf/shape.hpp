@@ -1,0 +1,111 @@
+// ShapeTree: one obstacle's 2D signed distance field, compiled from its "shape" JSON.
+#pragma once
+
+#include <cstdint>
+#include <pinsim/plugin.hpp>
+#include <vector>
+
+#include "json_in.hpp"
+
+namespace pinsim::sdf {
+
+/// A signed distance and its gradient (unit length; the outward normal at the surface).
+struct Sdf {
+  double d = HUGE_VAL;
+  Vec2 g{0.0, 1.0};
+};
+
+/// An axis-aligned box; `bounded == false` means the whole plane.
+struct Aabb {
+  Vec2 lo{HUGE_VAL, HUGE_VAL};
+  Vec2 hi{-HUGE_VAL, -HUGE_VAL};
+  bool bounded = true;
+
+  static Aabb everything() {
+    Aabb b;
+    b.bounded = false;
+    return b;
+  }
+  bool empty() const { return bounded && (lo.x() > hi.x() || lo.y() > hi.y()); }
+  void add(const Vec2& p) {
+    lo = lo.cwiseMin(p);
+    hi = hi.cwiseMax(p);
+  }
+  void add(const Aabb& b) {
+    if (!b.bounded) bounded = false;
+    if (b.bounded && !b.empty()) {
+      add(b.lo);
+      add(b.hi);
+    }
+  }
+  /// Distance from p to the box (0 inside); 0 when unbounded.
+  double distance(const Vec2& p) const {
+    if (!bounded) return 0.0;
+    const Vec2 q = (lo - p).cwiseMax(p - hi).cwiseMax(0.0);
+    return q.norm();
+  }
+};
+
+enum class ShapeType : uint8_t {
+  kCircle,
+  kBox,
+  kRoundedBox,
+  kCapsule,
+  kTaperedCapsule,
+  kPolygon,
+  kArc,
+  kHalfPlane,
+  kUnion,
+  kIntersection,
+  kSubtraction,
+  kInside
+};
+
+/// One node of the tree. Primitive parameters are stored in the node's own frame.
+struct ShapeNode {
+  ShapeType type = ShapeType::kCircle;
+  bool transformed = false;
+  double tc = 1.0, ts = 0.0;  ///< transform rotation cos/sin: world = R local + tt
+  Vec2 tt{0.0, 0.0};
+  Vec2 c{0.0, 0.0};           ///< centre / a / point
+  Vec2 b{0.0, 0.0};           ///< half size / b-a / normal
+  double ca = 1.0, sa = 0.0;  ///< primitive orientation (box angle, arc middle, capsule axis)
+  double r0 = 0.0, r1 = 0.0;  ///< radius / corner radius / radius_a, radius_b / arc half-thickness
+  double h = 0.0;             ///< tapered capsule length; arc: sin of half aperture in r1...
+  double k0 = 0.0, k1 = 0.0;  ///< precomputed constants (arc sin/cos, tapered a/b)
+  uint32_t first = 0, count = 0;  ///< children (into children_) or polygon vertices (verts_)
+};
+
+class ShapeTree {
+ public:
+  ShapeTree() = default;
+  /// Compiles `j` (a "shape" object); throws pinsim::Error with the JSON path on bad input.
+  static ShapeTree parse(const JsonIn& j);
+
+  /// Signed distance at p (shape frame); with G, also the gradient.
+  template <bool G>
+  Sdf eval(const Vec2& p) const {
+    return eval_node<G>(root_, p);
+  }
+  /// Bounds of the solid in the shape frame (unbounded for half-planes and containers).
+  Aabb bounds() const { return bounds_node(root_); }
+  /// Bounds of the boundary curve (a container's inner shape); unbounded if none.
+  Aabb boundary_bounds() const;
+  /// Number of primitives (leaves).
+  std::size_t primitives() const;
+
+ private:
+  uint32_t parse_node(const JsonIn& j, int depth);
+  template <bool G>
+  Sdf eval_node(uint32_t i, const Vec2& p) const;
+  template <bool G>
+  Sdf eval_primitive(const ShapeNode& n, const Vec2& p) const;
+  Aabb bounds_node(uint32_t i) const;
+
+  std::vector<ShapeNode> nodes_;
+  std::vector<uint32_t> children_;
+  std::vector<Vec2> verts_;
+  uint32_t root_ = 0;
+};
+
+}  // namespace pinsim::sdf

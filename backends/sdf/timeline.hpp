@@ -1,0 +1,78 @@
+// Timeline: a piecewise-linear scalar driven by press/release events (flipper angle,
+// slider position), exact at any time.
+#pragma once
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+#include <vector>
+
+namespace pinsim::sdf {
+
+class Timeline {
+ public:
+  /// Starts at `rest`; while pressed moves towards `pressed` at `speed_press` (> 0, per s),
+  /// while released back towards `rest` at `speed_release`; stops on reaching the target.
+  /// `events` are (time, pressed?) in time order.
+  Timeline(double rest, double pressed, double speed_press, double speed_release,
+           const std::vector<std::pair<double, bool>>& events) {
+    push(0.0, rest, 0.0);
+    double target = rest;
+    for (const auto& [te, press] : events) {
+      const Seg& last = seg_.back();
+      const double te_c = std::max(te, last.t);
+      // reached the current target before this event?
+      if (last.slope != 0.0) {
+        const double t_reach = last.t + std::abs(target - last.v) / std::abs(last.slope);
+        if (t_reach <= te_c) push(t_reach, target, 0.0);
+      }
+      const Seg& cur = seg_.back();
+      const double v = cur.slope == 0.0 ? cur.v : cur.v + cur.slope * (te_c - cur.t);
+      target = press ? pressed : rest;
+      const double speed = press ? speed_press : speed_release;
+      const double slope = target > v ? speed : (target < v ? -speed : 0.0);
+      push(te_c, v, slope);
+    }
+    const Seg& last = seg_.back();
+    if (last.slope != 0.0)
+      push(last.t + std::abs(target - last.v) / std::abs(last.slope), target, 0.0);
+  }
+
+  /// Value at time t.
+  double value(double t) const {
+    const Seg& s = at(t);
+    return s.slope == 0.0 ? s.v : s.v + s.slope * (t - s.t);
+  }
+  /// Rate of change at time t (the segment starting at or before t).
+  double rate(double t) const { return at(t).slope; }
+  /// Largest |rate| over [t0, t1].
+  double max_rate(double t0, double t1) const {
+    double m = 0.0;
+    for (std::size_t k = index(t0); k < seg_.size() && seg_[k].t <= t1; ++k)
+      m = std::max(m, std::abs(seg_[k].slope));
+    return m;
+  }
+  /// True if the value never changes.
+  bool constant() const { return seg_.size() == 1; }
+
+ private:
+  struct Seg {
+    double t, v, slope;
+  };
+  void push(double t, double v, double slope) {
+    if (!seg_.empty() && seg_.back().t == t)
+      seg_.back() = {t, v, slope};
+    else
+      seg_.push_back({t, v, slope});
+  }
+  std::size_t index(double t) const {
+    const auto it = std::upper_bound(seg_.begin(), seg_.end(), t,
+                                     [](double x, const Seg& s) { return x < s.t; });
+    return it == seg_.begin() ? 0 : static_cast<std::size_t>(it - seg_.begin() - 1);
+  }
+  const Seg& at(double t) const { return seg_[index(t)]; }
+
+  std::vector<Seg> seg_;
+};
+
+}  // namespace pinsim::sdf
