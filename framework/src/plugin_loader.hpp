@@ -60,6 +60,12 @@ class PluginLoader {
   std::vector<Listing> list() const;
 
   const std::vector<std::filesystem::path>& dirs() const { return dirs_; }
+  /// Names of the plugins loaded so far (a run loads only those its scene names).
+  std::vector<std::string> loaded() const {
+    std::vector<std::string> out;
+    for (const auto& [name, _] : by_name_) out.push_back(name);
+    return out;
+  }
 
  private:
   std::shared_ptr<const LoadedPlugin> remember(std::shared_ptr<const LoadedPlugin> p);

@@ -46,7 +46,7 @@ int run_command(const RunArgs& a) {
   }
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
-  spdlog::info("{}: {} particles, {} force(s), backend {}, {} steps of dt = {}", scene.label,
+  spdlog::debug("{}: {} particles, {} force(s), backend {}, {} steps of dt = {}", scene.label,
                scene.particles.size(), scene.forces.size(),
                a.backend.empty() ? scene.backend.name : a.backend, scene.steps(), scene.dt);
   RunResult r = run_scene(scene, loader, rs);

@@ -1,0 +1,109 @@
+// The pinsim program itself: exit codes and one-line errors for bad input.
+#include <sys/wait.h>
+
+#include <catch2/catch.hpp>
+#include <cstdio>
+#include <nlohmann/json.hpp>
+
+#include "test_support.hpp"
+
+using namespace pinsim;
+using Catch::Matchers::Contains;
+
+namespace {
+
+struct Result {
+  int code;
+  std::string output;  // stdout and stderr together
+};
+
+Result pinsim_cli(const std::string& args) {
+  const std::string cmd = std::string(PINSIM_BIN) + " " + args + " 2>&1";
+  Result r{-1, {}};
+  std::FILE* p = ::popen(cmd.c_str(), "r");
+  REQUIRE(p != nullptr);
+  char buf[4096];
+  while (std::size_t n = std::fread(buf, 1, sizeof buf, p)) r.output.append(buf, n);
+  const int status = ::pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+const std::string configs = PINSIM_SOURCE_DIR "/configs";
+
+}  // namespace
+
+TEST_CASE("cli: --version") {
+  const auto r = pinsim_cli("--version");
+  CHECK(r.code == 0);
+  CHECK_THAT(r.output, Contains("pinsim " PINSIM_VERSION));
+}
+
+TEST_CASE("cli: plugins lists the in-tree plugins and shows a parameter table") {
+  auto r = pinsim_cli("plugins");
+  CHECK(r.code == 0);
+  CHECK_THAT(r.output, Contains("gravity") && Contains("none"));
+  r = pinsim_cli("plugins gravity");
+  CHECK(r.code == 0);
+  CHECK_THAT(r.output, Contains("parameters:") && Contains("m/s^2") && Contains("[0.0,-9.81]"));
+}
+
+TEST_CASE("cli: run writes output and validate accepts a good scene") {
+  const auto dir = test::temp_dir("cli");
+  auto r = pinsim_cli("-q run " + configs + "/projectile.json --out " + dir.string());
+  CHECK(r.code == 0);
+  CHECK(r.output.empty());
+  CHECK(test::read_file(dir / "trajectory.csv").rfind("t,particle,x,y,vx,vy\n", 0) == 0);
+  r = pinsim_cli("validate " + configs + "/projectile.json");
+  CHECK(r.code == 0);
+  CHECK_THAT(r.output, Contains("ok: 1 particles"));
+}
+
+TEST_CASE("cli: --set, --integrator and --backend reach the run") {
+  const auto dir = test::temp_dir("cli-set");
+  const auto r = pinsim_cli("-q run " + configs + "/projectile.json --set time.duration=0.5 " +
+                            "--integrator velocity_verlet --backend none --out " + dir.string());
+  CHECK(r.code == 0);
+  const auto s = nlohmann::json::parse(test::read_file(dir / "summary.json"));
+  CHECK(s["steps"] == 500);
+  CHECK(s["integrator"] == "velocity_verlet");
+}
+
+TEST_CASE("cli: bad input gives one error line and a non-zero exit") {
+  const auto dir = test::temp_dir("cli-bad");
+  test::write_file(dir / "broken.json", "{ \"time\": ");
+  test::write_file(dir / "a_file", "x");
+  const std::pair<std::string, std::string> cases[] = {
+      {"run " + dir.string() + "/missing.json", "missing.json: scene file not found"},
+      {"run " + dir.string() + "/broken.json", "broken.json:1:"},
+      {"run " + configs + "/projectile.json --set time.dt=0", "time.dt: must be > 0"},
+      {"run " + configs + "/projectile.json --set time.duration=-1", "time.duration: must be >= 0"},
+      {"run " + configs + "/projectile.json --set particles[0].mass=0",
+       "particles[0].mass: must be > 0"},
+      {"run " + configs + "/projectile.json --backend nowhere", "unknown plugin 'nowhere'"},
+      {"run " + configs + "/projectile.json --integrator rk99", "unknown integrator 'rk99'"},
+      {"run " + configs + "/projectile.json --out " + dir.string() + "/a_file/sub",
+       "cannot create output folder"},
+      {"plugins no_such_plugin", "unknown plugin 'no_such_plugin'"},
+  };
+  for (const auto& [args, expected] : cases) {
+    CAPTURE(args);
+    const auto r = pinsim_cli(args);
+    CHECK(r.code == 2);
+    CHECK_THAT(r.output, Contains("[error]") && Contains(expected));
+    CHECK(std::count(r.output.begin(), r.output.end(), '\n') == 1);
+  }
+}
+
+TEST_CASE("cli: every shipped scene in configs/ validates") {
+  int n = 0;
+  for (const auto& e : std::filesystem::directory_iterator(configs)) {
+    if (e.path().extension() != ".json" || e.path().filename() == "scene.schema.json") continue;
+    CAPTURE(e.path().string());
+    const auto r = pinsim_cli("validate " + e.path().string());
+    CHECK(r.code == 0);
+    CHECK_THAT(r.output, Contains(": ok:"));
+    ++n;
+  }
+  CHECK(n >= 1);
+}
