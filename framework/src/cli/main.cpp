@@ -30,7 +30,7 @@ int main(int argc, char** argv) {
   pinsim::cli::add_run_command(app);
   pinsim::cli::add_validate_command(app);
   pinsim::cli::add_plugins_command(app);
-  // check-plugin registers here once its command file lands.
+  pinsim::cli::add_check_plugin_command(app);
 
   try {
     app.parse(argc, argv);
