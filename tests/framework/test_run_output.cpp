@@ -111,6 +111,36 @@ TEST_CASE("NaN detection: reports the step, time, particle and plugin where it b
   for (const auto& l : traj) CHECK(std::count(l.begin(), l.end(), ',') == 5);
 }
 
+TEST_CASE("energy blow-up detection stops the run where it began") {
+  // Two unit masses on a zero-rest-length spring: reduced mass mu = 1/2, omega = sqrt(k/mu).
+  // Symplectic Euler is stable for h omega < 2. k = 1e4: omega = 141.4; h = 0.01 gives
+  // h omega = 1.41 (stable), h = 0.02 gives 2.83, where the amplification factor is
+  // |lambda| = (y^2 - 2 + sqrt((y^2 - 2)^2 - 4)) / 2 = 5.83 per step, y = h omega.
+  auto scene = [](double h) {
+    return R"({"time": {"dt": )" + std::to_string(h) + R"(, "duration": 2.0},
+      "particles": [{"x": [0, 0]}, {"x": [0.1, 0], "v": [0, 0.5]}],
+      "forces": [{"type": "linear_spring", "params": {"k": 1e4, "rest_length": 0},
+                  "elements": [[0, 1]]}],
+      "checks": {"energy_blowup": 1000, "energy_every": 1}})";
+  };
+  PluginLoader loader(plugin_search_dirs());
+  const RunResult ok = run_scene(parse_scene(scene(0.01), "stable.json", "."), loader, {});
+  CHECK(ok.exit_code == 0);
+  // Below the limit symplectic Euler's energy oscillates (here up to about 2x the scale, as
+  // y^2/4 = 0.5) but stays bounded over 200 steps.
+  CHECK(ok.summary["energy"]["max_relative_drift"].get<double>() < 3.0);
+
+  test::FpTrapsOff traps;
+  const RunResult bad = run_scene(parse_scene(scene(0.02), "unstable.json", "."), loader, {});
+  CHECK(bad.exit_code == 1);
+  const auto& e = bad.summary["error"];
+  CHECK(e["kind"] == "numeric");
+  CHECK_THAT(e["message"].get<std::string>(), Contains("energy blow-up"));
+  // Energy grows by about 5.83^2 = 34 per step: past 1000 x the start within a few steps.
+  CHECK(e["step"].get<int>() <= 4);
+  CHECK(e["particle"].get<int>() >= 0);
+}
+
 TEST_CASE("interrupted run: stops cleanly with valid files") {
   const auto dir = test::temp_dir("interrupt");
   std::atomic<bool> stop{true};
