@@ -274,6 +274,21 @@ double ObstacleField::speed_bound(std::size_t k, double t0, double t1) const {
   return 0.0;
 }
 
+Vec2 ObstacleField::carry(std::size_t k, const Vec2& p, double t0, double t1) const {
+  const Obstacle& o = obs_[k];
+  switch (o.motion) {
+    case MotionType::kStatic:
+      return p;
+    case MotionType::kFlipper: {
+      const double a = o.timeline->value(t1) - o.timeline->value(t0);
+      return o.pivot + rot(std::cos(a), std::sin(a), p - o.pivot);
+    }
+    case MotionType::kSlider:
+      return p + (o.timeline->value(t1) - o.timeline->value(t0)) * o.offset;
+  }
+  return p;
+}
+
 double ObstacleField::lower_bound(std::size_t k, const Vec2& p) const {
   const Obstacle& o = obs_[k];
   double lb = -HUGE_VAL;

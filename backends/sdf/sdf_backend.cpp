@@ -96,7 +96,11 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
   bool first = true;
   while (remaining > 0.0) {
     if (b.iterations >= max_iterations_ || b.collisions >= max_collisions_) {
-      ++stats_.cap_hits;  // fallback: stay at the last safe position for the rest of the step
+      // Fallback: for the rest of the step the particle rides rigidly with the nearest
+      // obstacle (stays where it is if that one is static); its velocity is kept.
+      ++stats_.cap_hits;
+      const Nearest nn = field_.nearest(x, t);
+      if (nn.k >= 0) x = field_.carry(static_cast<std::size_t>(nn.k), x, t, t + remaining);
       return false;
     }
     ++b.iterations;
@@ -131,13 +135,30 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
     }
     first = false;
     const auto k = static_cast<std::size_t>(nn.k);
-    const Sdf sd = field_.eval(k, x, t);
-    const Vec2 n = sd.g;
-    const Vec2 pc = x - sd.d * n;
-    const Vec2 u = field_.velocity(k, pc, t);
-    const Vec2 vr = v - u;
-    const double vn = vr.dot(n);
-    if (vn < 0.0) {
+    Sdf sd = field_.eval(k, x, t);
+    Vec2 n = sd.g;
+    Vec2 pc = x - sd.d * n;
+    Vec2 u = field_.velocity(k, pc, t);
+    Vec2 vr = v - u;
+    double vn = vr.dot(n);
+    // approaching, beyond rounding of an earlier impulse
+    auto approaching = [&] { return vn < -1e-12 * (v.norm() + u.norm()); };
+    if (approaching() && d > delta_) {
+      // The march stopped up to tol above the offset: move on to the time of impact by
+      // the linear estimate (d - depth_min) / -vn, never more than the safe step d / L.
+      const double s = std::min({(d - delta_) / -vn, d / lip, remaining});
+      x += v * s;
+      t += s;
+      remaining -= s;
+      sd = field_.eval(k, x, t);
+      n = sd.g;
+      pc = x - sd.d * n;
+      u = field_.velocity(k, pc, t);
+      vr = v - u;
+      vn = vr.dot(n);
+    }
+    const double dc = sd.d - r;
+    if (approaching()) {
       const Material& m = field_.obstacle(k).material;
       const bool resting = -vn < rest_speed_;
       const double jn = -(1.0 + (resting ? 0.0 : m.restitution)) * vn;
@@ -165,10 +186,10 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
         e.vn_after = (v - u).dot(n);
         ev.emit(e);
       }
-      if (d < delta_) x += (delta_ - d) * n;  // back to the contact offset
+      if (dc < delta_) x += (delta_ - dc) * n;  // back to the contact offset
       continue;
     }
-    const double step = std::max(d, delta_) / lip;
+    const double step = std::max(dc, delta_) / lip;
     if (step >= remaining) {
       x += v * remaining;
       return true;
