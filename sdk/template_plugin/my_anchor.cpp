@@ -1,0 +1,62 @@
+// my_anchor: every listed particle is tied to a fixed anchor point by a zero-rest-length
+// spring and slowed by linear drag. A template: rename it, change the physics, keep the shape.
+//
+//   E = k/2 |x_i - anchor|^2          (seed, "Hooke's Law for nD linear springs")
+//   f_i = -k (x_i - anchor) - c v_i    (the drag part is dissipative: it has no energy)
+//   df_i/dx_i = -k I,  df_i/dv_i = -c I
+#include <pinsim/plugin.hpp>
+#include <string>
+#include <vector>
+
+class MyAnchor {
+ public:
+  /// Name, documentation, arity and the parameters the scene may set (with units).
+  static pinsim::PluginInfo info() {
+    pinsim::PluginInfo i;
+    i.name = "my_anchor";  // the scene's "type"; the library must be libpinsim_plugin_<name>.so
+    i.version = "1.0.0";
+    i.doc = "Zero-rest-length spring from each listed particle to a fixed anchor, plus drag";
+    i.arity = 1;  // one particle per element (2 = pairs, 3 = triples)
+    i.capabilities = PINSIM_CAP_DISSIPATIVE;
+    i.params.push_back(pinsim::real("k", 10.0).min(0).units("N/m").doc("spring stiffness"));
+    i.params.push_back(pinsim::vec2("anchor", 0.0, 0.0).units("m").doc("anchor point"));
+    i.params.push_back(pinsim::real("c", 0.1).min(0).units("N s/m").doc("linear drag"));
+    return i;
+  }
+
+  /// Reads the (validated) parameters and the element list; throw pinsim::Error on bad input.
+  explicit MyAnchor(const pinsim::CreateContext& ctx)
+      : k_(ctx.params.real("k")), c_(ctx.params.real("c")), anchor_(ctx.params.vec2("anchor")) {
+    particles_.assign(ctx.elements.data, ctx.elements.data + ctx.elements.count);
+    for (uint32_t p : particles_)
+      if (p >= ctx.initial.n)
+        throw pinsim::Error(ctx.context + ": particle " + std::to_string(p) + " out of range");
+  }
+
+  /// f += force. s.x and s.v are 2xN (one column per particle).
+  void add_force(const pinsim::StateView& s, pinsim::ForceOut& f) const {
+    for (uint32_t p : particles_) f.col(p) += -k_ * (s.x.col(p) - anchor_) - c_ * s.v.col(p);
+  }
+
+  /// Potential energy of the conservative part; f(x, v = 0) must equal -dE/dx.
+  double energy(const pinsim::StateView& s) const {
+    double e = 0.0;
+    for (uint32_t p : particles_) e += 0.5 * k_ * (s.x.col(p) - anchor_).squaredNorm();
+    return e;
+  }
+
+  /// Jacobians for implicit integrators: J.add_block(i, j, M) adds df_i/dx_j (2x2).
+  void add_dfdx(const pinsim::StateView&, pinsim::Triplets& J) const {
+    for (uint32_t p : particles_) J.add_block(p, p, -k_ * pinsim::Mat2::Identity());
+  }
+  void add_dfdv(const pinsim::StateView&, pinsim::Triplets& J) const {
+    for (uint32_t p : particles_) J.add_block(p, p, -c_ * pinsim::Mat2::Identity());
+  }
+
+ private:
+  double k_, c_;
+  pinsim::Vec2 anchor_;
+  std::vector<uint32_t> particles_;
+};
+
+PINSIM_PLUGIN(MyAnchor)
