@@ -169,7 +169,9 @@ void ObstacleField::build_grid(const std::vector<Vec2>& extra, long grid_cells) 
   g_inv_ = 1.0 / cell;
   const double hd = 0.5 * cell * std::sqrt(2.0);
   g_start_.assign(static_cast<std::size_t>(g_nx_) * g_ny_ + 1, 0);
+  g_mstart_.assign(static_cast<std::size_t>(g_nx_) * g_ny_ + 1, 0);
   std::vector<double> f(static_.size());
+  std::vector<std::pair<double, uint32_t>> order;
   for (int iy = 0; iy < g_ny_; ++iy) {
     for (int ix = 0; ix < g_nx_; ++ix) {
       const Vec2 c = g_lo_ + Vec2((ix + 0.5) * cell, (iy + 0.5) * cell);
@@ -180,10 +182,22 @@ void ObstacleField::build_grid(const std::vector<Vec2>& extra, long grid_cells) 
       }
       // 1e-9 relative slack against rounding in the bound itself
       const double lim = ub + 1e-9 * (std::abs(ub) + hd);
+      // candidates in increasing order of their lower bound over the cell, so a query can
+      // stop at the first whose bound is not below the best distance found
+      order.clear();
       for (std::size_t q = 0; q < static_.size(); ++q)
-        if (f[q] - hd <= lim) g_list_.push_back(static_[q]);
-      g_start_[static_cast<std::size_t>(iy) * g_nx_ + ix + 1] =
-          static_cast<uint32_t>(g_list_.size());
+        if (f[q] - hd <= lim) order.emplace_back(f[q] - hd, static_[q]);
+      std::sort(order.begin(), order.end());
+      for (const auto& [lb, k] : order) {
+        g_list_.push_back(k);
+        g_lb_.push_back(lb);
+      }
+      // a moving obstacle whose lower bound over the cell exceeds ub is never nearest here
+      for (uint32_t k : moving_)
+        if (lower_bound(k, c) - hd <= lim) g_mlist_.push_back(k);
+      const std::size_t cell_index = static_cast<std::size_t>(iy) * g_nx_ + ix + 1;
+      g_start_[cell_index] = static_cast<uint32_t>(g_list_.size());
+      g_mstart_[cell_index] = static_cast<uint32_t>(g_mlist_.size());
     }
   }
 }
@@ -215,27 +229,33 @@ Nearest ObstacleField::nearest(const Vec2& p, double t) const {
   Nearest best;
   const uint32_t* first = static_.data();
   const uint32_t* last = static_.data() + static_.size();
+  const uint32_t* mfirst = moving_.data();
+  const uint32_t* mlast = moving_.data() + moving_.size();
   if (g_nx_ > 0) {
     const double fx = (p.x() - g_lo_.x()) * g_inv_, fy = (p.y() - g_lo_.y()) * g_inv_;
     if (fx >= 0.0 && fy >= 0.0 && fx < g_nx_ && fy < g_ny_) {
       const std::size_t c = static_cast<std::size_t>(fy) * g_nx_ + static_cast<std::size_t>(fx);
       first = g_list_.data() + g_start_[c];
       last = g_list_.data() + g_start_[c + 1];
+      mfirst = g_mlist_.data() + g_mstart_[c];
+      mlast = g_mlist_.data() + g_mstart_[c + 1];
     }
   }
+  const double* lb = first == static_.data() ? nullptr : g_lb_.data() + (first - g_list_.data());
   for (const uint32_t* k = first; k != last; ++k) {
+    if (lb != nullptr && *lb++ >= best.d) break;
     const double d = obs_[*k].shape.eval<false>(p).d;
     if (d < best.d) {
       best.d = d;
       best.k = static_cast<int32_t>(*k);
     }
   }
-  for (uint32_t k : moving_) {
-    if (lower_bound(k, p) >= best.d) continue;
-    const double d = eval_at<false>(obs_[k], p, t).d;
+  for (const uint32_t* k = mfirst; k != mlast; ++k) {
+    if (lower_bound(*k, p) >= best.d) continue;
+    const double d = eval_at<false>(obs_[*k], p, t).d;
     if (d < best.d) {
       best.d = d;
-      best.k = static_cast<int32_t>(k);
+      best.k = static_cast<int32_t>(*k);
     }
   }
   return best;

@@ -85,6 +85,9 @@ class ObstacleField {
   int g_nx_ = 0, g_ny_ = 0;
   std::vector<uint32_t> g_start_;  ///< nx*ny + 1 offsets into g_list_
   std::vector<uint32_t> g_list_;
+  std::vector<double> g_lb_;        ///< per entry of g_list_: lower bound of its SDF over the cell
+  std::vector<uint32_t> g_mstart_;  ///< the same for moving obstacles that can be nearest
+  std::vector<uint32_t> g_mlist_;
 };
 
 }  // namespace pinsim::sdf

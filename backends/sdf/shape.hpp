@@ -109,3 +109,5 @@ class ShapeTree {
 };
 
 }  // namespace pinsim::sdf
+
+#include "shape_eval.inl"
