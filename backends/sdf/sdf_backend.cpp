@@ -186,7 +186,8 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
         e.vn_after = (v - u).dot(n);
         ev.emit(e);
       }
-      if (dc < delta_) x += (delta_ - dc) * n;  // back to the contact offset
+      if (dc < delta_) x += (delta_ - dc) * n;                  // back to the contact offset
+      if (u_max == 0.0 && v.squaredNorm() == 0.0) return true;  // at rest, nothing nearby moves
       continue;
     }
     const double step = std::max(dc, delta_) / lip;
