@@ -31,6 +31,7 @@ int main(int argc, char** argv) {
   pinsim::cli::add_validate_command(app);
   pinsim::cli::add_plugins_command(app);
   pinsim::cli::add_check_plugin_command(app);
+  pinsim::cli::add_crosscheck_command(app);
 
   try {
     app.parse(argc, argv);
