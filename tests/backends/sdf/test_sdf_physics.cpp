@@ -319,3 +319,21 @@ TEST_CASE("particle-particle contacts only when the scene turns them on") {
   CHECK(on.pos(0).x() == Approx(-0.1 - 0.6));  // contact at t=0.4, then 0.6 s back at speed 1
   CHECK(on.pos(1).x() == Approx(0.1 + 0.6));
 }
+
+TEST_CASE("bumper kick and Coulomb friction change the velocity by the closed form") {
+  // One impact on a floor: normal v_n' = -e v_n + kick; tangential speed reduced by
+  // min(mu (1 + e) |v_n|, |v_t|) (Coulomb limit on the tangential impulse, point ball).
+  const double e = 0.5, mu = 0.2, kick = 0.3, dt = 1e-3;
+  json scene = {{"obstacles",
+                 {obstacle("floor", {{"type", "half_plane"}, {"point", {0, 0}}, {"normal", {0, 1}}},
+                           e, mu, kick)}}};
+  const Vec2 v0(2.0, -1.5);
+  Sim sim(scene, {{Vec2(0, 0.1), v0, 0.05}});
+  for (int n = 0; n < 60; ++n) sim.step(dt);
+  REQUIRE(sim.events.size() == 1);
+  CHECK(sim.vel().y() == Approx(e * 1.5 + kick));
+  CHECK(sim.vel().x() == Approx(2.0 - mu * (1 + e) * 1.5));
+  CHECK(sim.events[0].vn_before == Approx(-1.5));
+  CHECK(sim.events[0].vn_after == Approx(e * 1.5 + kick));
+  CHECK(sim.events[0].point[1] == Approx(0.0).margin(1e-12));
+}

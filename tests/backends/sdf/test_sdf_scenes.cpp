@@ -67,3 +67,19 @@ TEST_CASE("the empty box scene is the seed's 1D problem") {
   CHECK(sim.vel().y() == 0.0);
   CHECK(!sim.events.empty());
 }
+
+TEST_CASE("the pinball run is deterministic: two runs agree to the bit") {
+  const json scene = load_config("pinball.json");
+  auto run = [&] {
+    const auto& p = scene["particles"][0];
+    Sim sim(backend_scene(scene),
+            {{Vec2(p["x"][0], p["x"][1]), Vec2(p["v"][0], p["v"][1]), p["radius"].get<double>(),
+              1.0 / p["mass"].get<double>()}},
+            scene["backend"]["params"]);
+    for (int n = 0; n < 20000; ++n) sim.step(scene["time"]["dt"].get<double>(), Vec2(0, -1.11));
+    return std::make_pair(sim.x, sim.v);
+  };
+  const auto a = run(), b = run();
+  CHECK(a.first == b.first);
+  CHECK(a.second == b.second);
+}
