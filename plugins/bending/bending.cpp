@@ -25,6 +25,9 @@ PluginInfo Bending::info() {
       string("shape", "flat").choices("flat|initial|angle").doc("rest shape of every triple"));
   i.params.push_back(
       real("rest_angle", 0.0).units("rad").doc("rest angle θ0 when shape is 'angle'"));
+  i.params.push_back(boolean("length_scaled", false)
+                         .doc("stiffness k / l per triple, l its mean initial edge length "
+                              "(k then in J m)"));
   return i;
 }
 
@@ -37,6 +40,19 @@ Bending::Bending(const CreateContext& ctx) : k_(ctx.params.real("k")) {
     if (i >= ctx.initial.n)
       throw Error(ctx.context + ": particle index " + std::to_string(i) + " out of range (" +
                   std::to_string(ctx.initial.n) + " particles)");
+  if (ctx.params.boolean("length_scaled")) {
+    // Discrete rod bending stiffness ~ EI / l (seed, "Length-dependent bending stiffness",
+    // Kass): each triple's k divided by its mean initial edge length; 0 if that is 0.
+    ke_.resize(ctx.elements.count);
+    for (std::size_t e = 0; e < ke_.size(); ++e) {
+      const double la =
+          (ctx.initial.x.col(idx_[3 * e + 1]) - ctx.initial.x.col(idx_[3 * e])).norm();
+      const double lb =
+          (ctx.initial.x.col(idx_[3 * e + 2]) - ctx.initial.x.col(idx_[3 * e + 1])).norm();
+      const double l = 0.5 * (la + lb);
+      ke_[e] = l > kMinLength ? k_ / l : 0.0;
+    }
+  }
   const std::string shape = ctx.params.string("shape");
   if (shape == "flat") return;
   flat_ = false;
@@ -65,14 +81,15 @@ Bending::Bending(const CreateContext& ctx) : k_(ctx.params.real("k")) {
 
 double Bending::rest_angle(std::size_t e) const { return flat_ ? 0.0 : std::atan2(s0_[e], c0_[e]); }
 
-template <bool Flat>
+template <bool Flat, bool Scaled>
 void Bending::add_force_impl(const StateView& s, ForceOut& f) const {
   const double* x = s.x.data();
   double* out = f.data();
   const std::size_t m = idx_.size() / 3;
   const uint32_t* id = idx_.data();
-  const double hk = 0.5 * k_;
+  const double* ke = ke_.data();
   for (std::size_t e = 0; e < m; ++e, id += 3) {
+    const double hk = 0.5 * (Scaled ? ke[e] : k_);
     const uint32_t i0 = id[0], i1 = id[1], i2 = id[2];
     const double ax = x[2 * i1] - x[2 * i0], ay = x[2 * i1 + 1] - x[2 * i0 + 1];
     const double bx = x[2 * i2] - x[2 * i1], by = x[2 * i2 + 1] - x[2 * i1 + 1];
@@ -102,10 +119,15 @@ void Bending::add_force_impl(const StateView& s, ForceOut& f) const {
 }
 
 void Bending::add_force(const StateView& s, ForceOut& f) const {
-  if (flat_)
-    add_force_impl<true>(s, f);
+  const bool scaled = !ke_.empty();
+  if (flat_ && !scaled)
+    add_force_impl<true, false>(s, f);
+  else if (flat_)
+    add_force_impl<true, true>(s, f);
+  else if (!scaled)
+    add_force_impl<false, false>(s, f);
   else
-    add_force_impl<false>(s, f);
+    add_force_impl<false, true>(s, f);
 }
 
 double Bending::energy(const StateView& s) const {
@@ -116,9 +138,9 @@ double Bending::energy(const StateView& s) const {
     const double la = a.norm(), lb = b.norm();
     if (!(la > kMinLength && lb > kMinLength)) continue;
     const double c = flat_ ? 1.0 : c0_[e], sn = flat_ ? 0.0 : s0_[e];
-    sum += (c * a.dot(b) + sn * (a.x() * b.y() - a.y() * b.x())) / (la * lb);
+    sum += k_of(e) * (c * a.dot(b) + sn * (a.x() * b.y() - a.y() * b.x())) / (la * lb);
   }
-  return -0.5 * k_ * sum;
+  return -0.5 * sum;
 }
 
 // Second derivatives of s = âᵀ M b̂ in the edge vectors (Π_u = I - ûûᵀ, m = M b̂, n = Mᵀ â),
@@ -152,7 +174,7 @@ void Bending::add_dfdx(const StateView& s, Triplets& J) const {
       for (int j = 0; j < 3; ++j) {
         const Mat2 blk = da[i] * da[j] * haa + da[i] * db[j] * hab +
                          db[i] * da[j] * hab.transpose() + db[i] * db[j] * hbb;
-        J.add_block(p[i], p[j], 0.5 * k_ * blk);
+        J.add_block(p[i], p[j], 0.5 * k_of(e) * blk);
       }
   }
 }

@@ -27,14 +27,17 @@ class Bending {
   double rest_angle(std::size_t e) const;
 
  private:
-  template <bool Flat>
+  template <bool Flat, bool Scaled>
   void add_force_impl(const StateView& s, ForceOut& f) const;
+  /// Stiffness of element e: k, or k / (mean initial edge length) when length-scaled.
+  double k_of(std::size_t e) const { return ke_.empty() ? k_ : ke_[e]; }
 
   double k_;
   bool flat_ = true;           ///< every θ0 is 0: the seed's formula, no M
   std::vector<uint32_t> idx_;  ///< 3 per element
   std::vector<double> c0_;     ///< cos θ0 per element (empty when flat)
   std::vector<double> s0_;     ///< sin θ0 per element (empty when flat)
+  std::vector<double> ke_;     ///< per-element stiffness when length-scaled, else empty
 };
 
 }  // namespace pinsim::plugins

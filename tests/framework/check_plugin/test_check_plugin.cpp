@@ -66,6 +66,7 @@ TEST_CASE("shipped: bending, flat, initial and fixed rest angle") {
   require_pass(check("bending"), kInternal);
   require_pass(check("bending", {{"shape", "initial"}}), kInternal);
   require_pass(check("bending", {{"shape", "angle"}, {"rest_angle", -2.0}}), kInternal);
+  require_pass(check("bending", {{"shape", "initial"}, {"length_scaled", true}}), kInternal);
 }
 
 TEST_CASE("shipped: gravity, uniform and pairwise") {

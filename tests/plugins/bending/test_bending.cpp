@@ -99,3 +99,13 @@ TEST_CASE("stiff cantilever strand at rest under gravity keeps its shape") {
   CHECK(s.x(1, n - 1) == Approx(predicted[n - 1]).epsilon(0.05));
   CHECK(s.v.cwiseAbs().maxCoeff() < 1e-4);
 }
+
+TEST_CASE("length-scaled stiffness: k / l with l the triple's mean initial edge length") {
+  // Edges 1 and 3 initially: l = 2, k = 4 -> k_e = 2, so a straight triple has E = -k_e/2 = -1
+  // and the right-angle forces are half the unscaled ones (f0 = -k_e/(2a) b̂).
+  const Particles init = triple({0, 0}, {1, 0}, {4, 0});
+  Force f("bending", {{"k", 4.0}, {"length_scaled", true}}, init, {0, 1, 2});
+  CHECK(f.energy(init) == Approx(-1.0));
+  const Particles bent = triple({0, 0}, {1, 0}, {1, 3});
+  CHECK(f.force(bent)(1, 0) == Approx(-1.0));  // -2/(2*1) * (0, 1)
+}
