@@ -46,6 +46,8 @@ Aabb transform_box(const Aabb& b, double c, double s, const Vec2& t) {
 ShapeTree ShapeTree::parse(const JsonIn& j) {
   ShapeTree t;
   t.root_ = t.parse_node(j, 0);
+  const ShapeNode& r = t.nodes_[t.root_];
+  t.root_primitive_ = r.type < ShapeType::kUnion && !r.transformed;
   return t;
 }
 

@@ -85,7 +85,8 @@ class ShapeTree {
   /// Signed distance at p (shape frame); with G, also the gradient.
   template <bool G>
   Sdf eval(const Vec2& p) const {
-    return eval_node<G>(root_, p);
+    // most obstacles are one untransformed primitive: skip the tree walk
+    return root_primitive_ ? eval_primitive<G>(nodes_[root_], p) : eval_node<G>(root_, p);
   }
   /// Bounds of the solid in the shape frame (unbounded for half-planes and containers).
   Aabb bounds() const { return bounds_node(root_); }
@@ -106,6 +107,7 @@ class ShapeTree {
   std::vector<uint32_t> children_;
   std::vector<Vec2> verts_;
   uint32_t root_ = 0;
+  bool root_primitive_ = false;  ///< root is a primitive without a transform
 };
 
 }  // namespace pinsim::sdf
