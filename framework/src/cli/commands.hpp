@@ -9,6 +9,8 @@ void add_run_command(CLI::App& app);
 void add_validate_command(CLI::App& app);
 void add_plugins_command(CLI::App& app);
 void add_check_plugin_command(CLI::App& app);
+void add_render_command(CLI::App& app);
+void add_replay_command(CLI::App& app);
 void add_crosscheck_command(CLI::App& app);
 
 }  // namespace pinsim::cli

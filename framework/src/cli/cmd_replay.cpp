@@ -1,0 +1,62 @@
+// pinsim replay RUN_DIR [--out FILE.html] [--scene FILE] [--width W] [--view x0,y0,x1,y1]
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+#include <memory>
+
+#include "commands.hpp"
+#include "replay.hpp"
+
+namespace pinsim::cli {
+namespace {
+namespace fs = std::filesystem;
+
+struct ReplayArgs {
+  std::string run;
+  std::string out;
+  std::string scene;
+  std::vector<std::string> set;
+  int width = 640;
+  std::string view;
+};
+
+int replay_command(const ReplayArgs& a) {
+  if (!is_run_dir(a.run))
+    throw std::runtime_error(a.run + ": not a run folder (no trajectory.csv)");
+  const RunData run = load_run(a.run);
+  fs::path scene_file = a.scene;
+  if (scene_file.empty()) scene_file = run_scene_file(run);
+  std::optional<Scene> scene;
+  if (!scene_file.empty())
+    scene = load_scene(scene_file, a.set);
+  else
+    spdlog::warn(
+        "the run's scene file was not found (summary.json \"scene\"); the page shows no "
+        "obstacles (give it with --scene)");
+  ReplayOptions opt;
+  opt.width = a.width;
+  if (!a.view.empty()) opt.view = parse_view(a.view);
+  const fs::path out = a.out.empty() ? fs::path(a.run) / "replay.html" : fs::path(a.out);
+  PluginLoader loader(plugin_search_dirs(scene ? scene->plugin_path : std::vector<fs::path>{}));
+  const PixelMap map = write_replay(run, scene ? &*scene : nullptr, loader, opt, out);
+  spdlog::info("replay page written to {} ({} x {} canvas, {:.3f} s of run)", out.string(),
+               map.width, map.height, run.t_end());
+  return 0;
+}
+
+}  // namespace
+
+void add_replay_command(CLI::App& app) {
+  auto a = std::make_shared<ReplayArgs>();
+  CLI::App* c = app.add_subcommand(
+      "replay", "Write one self-contained HTML page that plays a run (works offline)");
+  c->add_option("run", a->run, "Run folder (from pinsim run --out)")->required();
+  c->add_option("--out,-o", a->out, "HTML file (default: RUN_DIR/replay.html)");
+  c->add_option("--scene", a->scene, "Scene for the obstacles (default: the run's summary.json)");
+  c->add_option("--set", a->set, "Override a scene value, e.g. --set time.dt=0.0005")->take_all();
+  c->add_option("--width,-w", a->width, "Canvas width, pixels")->check(CLI::Range(64, 4096));
+  c->add_option("--view", a->view, "World rectangle x0,y0,x1,y1 (default: fit everything)");
+  c->callback([a] { throw CLI::RuntimeError(replay_command(*a)); });
+}
+
+}  // namespace pinsim::cli
