@@ -11,6 +11,7 @@ void add_plugins_command(CLI::App& app);
 void add_check_plugin_command(CLI::App& app);
 void add_render_command(CLI::App& app);
 void add_replay_command(CLI::App& app);
+void add_play_command(CLI::App& app);
 void add_crosscheck_command(CLI::App& app);
 
 }  // namespace pinsim::cli

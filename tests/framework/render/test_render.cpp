@@ -4,9 +4,11 @@
 #include <cairo.h>
 #include <sys/wait.h>
 
+#include <array>
 #include <catch2/catch.hpp>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <regex>
@@ -241,4 +243,54 @@ TEST_CASE(
   CHECK(png.is_red(px(at.x()), py(at.y())));
   CHECK(!png.is_red(px(start.x()), py(start.y())));  // no ball where it started
   CHECK(png.is_dark(px(0.5), py(0.3)));              // the background: the disc
+}
+
+TEST_CASE(
+    "play: a window under Xvfb with scripted input; its recording replays to the same "
+    "state hash") {
+  if (shell("command -v xvfb-run >/dev/null").code != 0) {
+    WARN("SKIPPED: xvfb-run is not installed (scripts/setup.sh installs xvfb)");
+    return;
+  }
+  const fs::path dir = test::temp_dir("play");
+  const std::string table = PINSIM_SOURCE_DIR "/configs/pinball.json";
+  const std::string script = PINSIM_TEST_SOURCE_DIR "/framework/render/play_script.json";
+  const fs::path rec = dir / "recording.json", shot = dir / "shot.png";
+  auto r = shell("xvfb-run -a -s '-screen 0 1024x1280x24' " + std::string(PINSIM_BIN) + " play " +
+                 table + " --script " + script + " --seconds 3 --width 400 --record " +
+                 rec.string() + " --screenshot " + shot.string());
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  const auto recording = nlohmann::json::parse(test::read_file(rec));
+  CHECK(recording["steps"] == 15000);  // 3 s at dt = 0.0002 s
+  CHECK(recording["inputs"].size() == 6);
+  CHECK(recording["inputs"][1]["action"] == "release");
+  CHECK(recording["inputs"][1]["step"] == 3000);  // t = 0.6 s
+
+  // The screenshot is what the window showed: the table, and the ball where the game has it.
+  Png png(shot);
+  REQUIRE(png.ok());
+  CHECK(png.width() == 400);
+  CHECK(png.height() > 600);
+  const double bx = recording["ball"][0], by = recording["ball"][1];
+  // The window's mapping: the scene view (see `render`), 400 pixels across; recompute it.
+  const Scene scene = load_scene(table);
+  const PixelMap map(scene_view(scene), 400);
+  CHECK(png.height() == map.height);
+  CHECK(png.is_red(static_cast<int>(map.px(bx)), static_cast<int>(map.py(by))));
+  CHECK(png.is_dark(static_cast<int>(map.px(0.22)), static_cast<int>(map.py(0.72))));  // bumper
+
+  // Replaying the recording without a window reaches the identical state.
+  r = pinsim_cli("play --replay " + rec.string());
+  INFO(r.output);
+  CHECK(r.code == 0);
+  CHECK(r.output.find(recording["state_hash"].get<std::string>()) != std::string::npos);
+  CHECK(r.output.find("identical") != std::string::npos);
+
+  // A changed recording does not (the check can fail).
+  auto changed = recording;
+  changed["inputs"][1]["step"] = 3500;  // the plunger released 0.1 s later
+  test::write_file(dir / "changed.json", changed.dump());
+  r = pinsim_cli("play --replay " + (dir / "changed.json").string());
+  CHECK(r.code == 1);
 }

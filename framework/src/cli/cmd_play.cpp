@@ -1,0 +1,316 @@
+// pinsim play [SCENE] [--script FILE] [--seconds S] [--record FILE] [--screenshot FILE.png]
+//             [--replay FILE] [--width W]
+// A window (SDL2) showing the table at 60 frames per second; the physics steps at the scene's
+// dt (a frame advances the game by 1/60 s of simulated time). Keys: Left/Z/LShift left
+// flipper, Right/M/RShift right flipper, Space/Down plunger, Enter new game, Esc quit.
+#include <SDL.h>
+#include <cairo.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <memory>
+
+#include "cli_common.hpp"
+#include "commands.hpp"
+#include "play_game.hpp"
+#include "render.hpp"
+#include "render_field.hpp"
+
+namespace pinsim::cli {
+namespace {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+constexpr double kFps = 60.0;
+
+struct PlayArgs {
+  std::string scene;
+  std::string script;
+  double seconds = 0;
+  std::string record;
+  std::string screenshot;
+  std::string replay;
+  int width = 480;
+};
+
+/// A script entry: at simulated time t, press or release an input.
+struct Scripted {
+  double t;
+  std::string input;
+  bool press;
+};
+
+std::vector<Scripted> read_script(const std::string& file) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error(file + ": cannot open");
+  const json j = json::parse(in, nullptr, true, true);
+  std::vector<Scripted> out;
+  for (const auto& e : j.is_array() ? j : j.at("inputs"))
+    out.push_back({e.at("t").get<double>(), e.at("input").get<std::string>(),
+                   e.at("action").get<std::string>() == "press"});
+  std::stable_sort(out.begin(), out.end(),
+                   [](const Scripted& a, const Scripted& b) { return a.t < b.t; });
+  return out;
+}
+
+/// The input a key drives, or "".
+std::string key_input(SDL_Keycode k, const std::vector<std::string>& names) {
+  auto find = [&](const char* part) -> std::string {
+    for (const auto& n : names)
+      if (n.find(part) != std::string::npos) return n;
+    return "";
+  };
+  switch (k) {
+    case SDLK_LEFT:
+    case SDLK_z:
+    case SDLK_LSHIFT:
+      return find("left");
+    case SDLK_RIGHT:
+    case SDLK_m:
+    case SDLK_SLASH:
+    case SDLK_RSHIFT:
+      return find("right");
+    case SDLK_SPACE:
+    case SDLK_DOWN:
+      return find("plunger");
+    default:
+      return "";
+  }
+}
+
+/// Draws one frame of the game into `cr` (the static field is pre-rendered).
+class Painter {
+ public:
+  Painter(const PinballGame& g, const PixelMap& map, cairo_surface_t* background)
+      : map_(map), background_(background) {
+    // Regions around each moving obstacle, resampled every frame.
+    const json& bs = g.scene().backend_scene;
+    if (bs.contains("obstacles"))
+      for (const auto& o : bs["obstacles"]) {
+        if (!o.contains("motion")) continue;
+        json one = bs;
+        one["obstacles"] = json::array({o});
+        ViewBox v = obstacles_view(one);
+        if (v.empty()) continue;
+        v.pad(0.05);
+        PixelMap sub;
+        sub.scale = map.scale;
+        const double px0 = std::floor(std::max(0.0, map.px(v.x0)));
+        const double py0 = std::floor(std::max(0.0, map.py(v.y1)));
+        const double px1 = std::ceil(std::min<double>(map.width, map.px(v.x1)));
+        const double py1 = std::ceil(std::min<double>(map.height, map.py(v.y0)));
+        if (!(px1 > px0 && py1 > py0)) continue;
+        sub.width = static_cast<int>(px1 - px0);
+        sub.height = static_cast<int>(py1 - py0);
+        sub.view = ViewBox{map.wx(px0), map.wy(py1), map.wx(px1), map.wy(py0)};
+        regions_.push_back({sub, px0, py0});
+      }
+  }
+
+  void paint(cairo_t* cr, const PinballGame& g) {
+    cairo_set_source_surface(cr, background_, 0, 0);
+    cairo_paint(cr);
+    const double t = g.state().t;
+    for (const auto& r : regions_) {
+      const FieldGrid grid = sample_field(
+          [&](double x, double y) { return g.backend().distance(x, y, t, nullptr); }, r.map, 2);
+      cairo_save(cr);
+      cairo_translate(cr, r.px0, r.py0);
+      draw_solid(cr, grid, 0.22, 0.27, 0.36);
+      cairo_restore(cr);
+    }
+    const State& s = g.state();
+    for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
+      double c[3];
+      particle_colour(0, static_cast<std::size_t>(i), c);
+      cairo_new_sub_path(cr);
+      cairo_arc(cr, map_.px(s.x(0, i)), map_.py(s.x(1, i)), std::max(2.5, s.radius[i] * map_.scale),
+                0, 2 * M_PI);
+      cairo_set_source_rgb(cr, c[0], c[1], c[2]);
+      cairo_fill_preserve(cr);
+      cairo_set_source_rgb(cr, 0.08, 0.08, 0.08);
+      cairo_set_line_width(cr, 1);
+      cairo_stroke(cr);
+    }
+    // Score panel along the top.
+    cairo_set_source_rgba(cr, 0.08, 0.09, 0.12, 0.85);
+    cairo_rectangle(cr, 0, 0, map_.width, 26);
+    cairo_fill(cr);
+    cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_BOLD);
+    cairo_set_font_size(cr, 15);
+    cairo_set_source_rgb(cr, 1.0, 0.85, 0.3);
+    const std::string hud =
+        "SCORE " + std::to_string(g.score()) + "    BALLS " + std::to_string(g.balls_left());
+    cairo_move_to(cr, 8, 18);
+    cairo_show_text(cr, hud.c_str());
+    if (t < g.message_until() && !g.message().empty()) {
+      cairo_set_font_size(cr, 30);
+      cairo_text_extents_t e;
+      cairo_text_extents(cr, g.message().c_str(), &e);
+      const double x = 0.5 * (map_.width - e.width), y = 0.45 * map_.height;
+      cairo_set_source_rgba(cr, 0, 0, 0, 0.6);
+      cairo_rectangle(cr, x - 10, y - e.height - 10, e.width + 20, e.height + 20);
+      cairo_fill(cr);
+      cairo_set_source_rgb(cr, 1.0, 0.3, 0.2);
+      cairo_move_to(cr, x, y);
+      cairo_show_text(cr, g.message().c_str());
+    }
+  }
+
+ private:
+  struct Region {
+    PixelMap map;
+    double px0, py0;
+  };
+  PixelMap map_;
+  cairo_surface_t* background_;
+  std::vector<Region> regions_;
+};
+
+int replay_recording(const PlayArgs& a) {
+  std::ifstream in(a.replay);
+  if (!in) throw std::runtime_error(a.replay + ": cannot open");
+  const json rec = json::parse(in);
+  const std::string scene_file = a.scene.empty() ? rec.at("scene").get<std::string>() : a.scene;
+  Scene scene = load_scene_or_default(scene_file, {});
+  PluginLoader loader(plugin_search_dirs(scene.plugin_path));
+  PinballGame game(scene, loader);
+  game.replay(rec);
+  const json out = game.recording(scene_file);
+  const bool same = out["state_hash"] == rec.at("state_hash");
+  std::printf("state_hash %s after %llu steps, score %d: %s\n",
+              out["state_hash"].get<std::string>().c_str(),
+              static_cast<unsigned long long>(game.steps()), game.score(),
+              same ? "identical to the recording" : "DIFFERS from the recording");
+  return same ? 0 : 1;
+}
+
+int play_command(const PlayArgs& a) {
+  if (!a.replay.empty()) return replay_recording(a);
+  const std::string scene_file = a.scene;
+  Scene scene = load_scene_or_default(scene_file, {});
+  PluginLoader loader(plugin_search_dirs(scene.plugin_path));
+  auto game = std::make_unique<PinballGame>(scene, loader);
+  std::vector<Scripted> script;
+  if (!a.script.empty()) script = read_script(a.script);
+
+  // The static table, pre-rendered once.
+  const PixelMap map(scene_view(scene), a.width);
+  cairo_surface_t* bg = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, map.width, map.height);
+  {
+    cairo_t* cr = cairo_create(bg);
+    auto be = make_backend(scene, loader, static_obstacles(scene.backend_scene));
+    const FieldGrid g =
+        sample_field([&](double x, double y) { return be->distance(x, y, 0.0, nullptr); }, map, 1);
+    draw_field(cr, map, g, contour_spacing(map.view));
+    cairo_destroy(cr);
+  }
+  cairo_surface_t* frame = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, map.width, map.height);
+  Painter painter(*game, map, bg);
+
+  if (SDL_Init(SDL_INIT_VIDEO) != 0)
+    throw std::runtime_error(std::string("SDL_Init: ") + SDL_GetError());
+  SDL_Window* win = SDL_CreateWindow(("pinsim play: " + scene.name).c_str(), SDL_WINDOWPOS_CENTERED,
+                                     SDL_WINDOWPOS_CENTERED, map.width, map.height, 0);
+  if (!win) throw std::runtime_error(std::string("SDL_CreateWindow: ") + SDL_GetError());
+  SDL_Renderer* ren = SDL_CreateRenderer(win, -1, SDL_RENDERER_PRESENTVSYNC);
+  if (!ren) ren = SDL_CreateRenderer(win, -1, SDL_RENDERER_SOFTWARE);
+  if (!ren) throw std::runtime_error(std::string("SDL_CreateRenderer: ") + SDL_GetError());
+  SDL_Texture* tex = SDL_CreateTexture(ren, SDL_PIXELFORMAT_ARGB8888, SDL_TEXTUREACCESS_STREAMING,
+                                       map.width, map.height);
+
+  std::size_t next_script = 0;
+  uint64_t frame_no = 0;
+  bool quit = false;
+  while (!quit) {
+    const uint32_t frame_start = SDL_GetTicks();
+    SDL_Event ev;
+    while (SDL_PollEvent(&ev)) {
+      if (ev.type == SDL_QUIT) quit = true;
+      if ((ev.type == SDL_KEYDOWN || ev.type == SDL_KEYUP) && ev.key.repeat == 0) {
+        if (ev.key.keysym.sym == SDLK_ESCAPE) quit = true;
+        if (ev.key.keysym.sym == SDLK_RETURN && ev.type == SDL_KEYDOWN && game->game_over())
+          game = std::make_unique<PinballGame>(scene, loader);
+        const std::string in = key_input(ev.key.keysym.sym, game->input_names());
+        if (!in.empty()) game->set_input(in, ev.type == SDL_KEYDOWN);
+      }
+    }
+    // Physics: as many steps of dt as reach the next frame's time.
+    ++frame_no;
+    const double t_frame = static_cast<double>(frame_no) / kFps;
+    while (!game->game_over() && game->state().t + 0.5 * game->dt() < t_frame) {
+      while (next_script < script.size() && script[next_script].t <= game->state().t + 1e-12) {
+        game->set_input(script[next_script].input, script[next_script].press);
+        ++next_script;
+      }
+      game->step();
+    }
+    if (a.seconds > 0 && t_frame >= a.seconds - 1e-9) quit = true;
+
+    cairo_t* cr = cairo_create(frame);
+    painter.paint(cr, *game);
+    cairo_destroy(cr);
+    cairo_surface_flush(frame);
+    SDL_UpdateTexture(tex, nullptr, cairo_image_surface_get_data(frame),
+                      cairo_image_surface_get_stride(frame));
+    SDL_RenderClear(ren);
+    SDL_RenderCopy(ren, tex, nullptr, nullptr);
+    if (quit && !a.screenshot.empty()) {
+      // What the window shows, read back from the renderer.
+      cairo_surface_t* shot =
+          cairo_image_surface_create(CAIRO_FORMAT_ARGB32, map.width, map.height);
+      cairo_surface_flush(shot);
+      if (SDL_RenderReadPixels(ren, nullptr, SDL_PIXELFORMAT_ARGB8888,
+                               cairo_image_surface_get_data(shot),
+                               cairo_image_surface_get_stride(shot)) != 0)
+        spdlog::warn("screenshot: {}", SDL_GetError());
+      cairo_surface_mark_dirty(shot);
+      cairo_surface_write_to_png(shot, a.screenshot.c_str());
+      cairo_surface_destroy(shot);
+    }
+    SDL_RenderPresent(ren);
+    // 60 frames per second (vsync may already have waited).
+    const uint32_t spent = SDL_GetTicks() - frame_start;
+    if (spent < 16) SDL_Delay(16 - spent);
+  }
+  SDL_DestroyTexture(tex);
+  SDL_DestroyRenderer(ren);
+  SDL_DestroyWindow(win);
+  SDL_Quit();
+  cairo_surface_destroy(frame);
+  cairo_surface_destroy(bg);
+
+  const json rec = game->recording(scene_file);
+  spdlog::info("score {} after {:.2f} s ({} steps), balls left {}{}; state hash {}", game->score(),
+               game->state().t, game->steps(), game->balls_left(),
+               game->game_over() ? ", game over" : "", rec["state_hash"].get<std::string>());
+  if (!a.record.empty()) {
+    std::ofstream out(a.record);
+    out << rec.dump(2) << "\n";
+    if (!out) throw std::runtime_error(a.record + ": cannot write");
+    spdlog::info("inputs recorded to {}", a.record);
+  }
+  return 0;
+}
+
+}  // namespace
+
+void add_play_command(CLI::App& app) {
+  auto a = std::make_shared<PlayArgs>();
+  CLI::App* c = app.add_subcommand(
+      "play", "Play the pinball table in a window (keys: Left/Z, Right/M, Space/Down, Esc)");
+  c->add_option("scene", a->scene, "Scene file (default: the embedded pinball table)");
+  c->add_option("--script", a->script,
+                "Scripted inputs: JSON [{\"t\": s, \"input\": name, \"action\": press|release}]");
+  c->add_option("--seconds", a->seconds, "Quit after this much game time, s");
+  c->add_option("--record", a->record, "Write the input recording (JSON) here when done");
+  c->add_option("--screenshot", a->screenshot, "Save the last frame shown (PNG)");
+  c->add_option("--replay", a->replay,
+                "Replay a recording without a window; exit 0 if the state hash is identical");
+  c->add_option("--width,-w", a->width, "Window width, pixels")->check(CLI::Range(128, 4096));
+  c->callback([a] { throw CLI::RuntimeError(play_command(*a)); });
+}
+
+}  // namespace pinsim::cli
