@@ -4,6 +4,7 @@
 #include <map>
 #include <stdexcept>
 
+#include "integrator_kinds.hpp"
 #include "simulation.hpp"
 
 namespace pinsim {
@@ -33,26 +34,36 @@ class SymplecticEuler : public Integrator {
 /// Velocity Verlet, kick/2 - drift - kick/2:
 ///   v_{n+1/2} = v_n + h/2 M^-1 f(x_n);  x_{n+1} = x_n + h v_{n+1/2};
 ///   v_{n+1} = v_{n+1/2} + h/2 M^-1 f(x_{n+1}).
-/// Second order; exact (to rounding) for constant forces.
+/// Second order; exact (to rounding) for constant forces. A contact inside the drift
+/// reflects v_{n+1/2}, not the velocity at the time of impact v_n + tau M^-1 f_n;
+/// correct_impacts fixes the impulse so a bounce keeps the method second order.
 class VelocityVerlet : public Integrator {
  public:
   void step(Simulation& sim, double h) override {
     State& s = sim.state();
     sim.compute_forces(s, f_);
     kick(s, f_, 0.5 * h);
+    const std::size_t first_event = sim.events().size();
     sim.drift(s, h);
+    if (sim.events().size() > first_event) {
+      accelerations(s, f_, a_);
+      correct_impacts(s, sim.events(), first_event, s.t, 0.5 * h, a_);
+    }
     sim.compute_forces(s, f_);
     kick(s, f_, 0.5 * h);
   }
 
  private:
-  Eigen::Matrix2Xd f_;
+  Eigen::Matrix2Xd f_, a_;
 };
 
 const std::map<std::string, std::function<std::unique_ptr<Integrator>()>>& registry() {
   static const std::map<std::string, std::function<std::unique_ptr<Integrator>()>> r = {
       {"symplectic_euler", [] { return std::make_unique<SymplecticEuler>(); }},
       {"velocity_verlet", [] { return std::make_unique<VelocityVerlet>(); }},
+      {"explicit_euler", [] { return make_explicit_euler(); }},
+      {"rk4", [] { return make_rk4(); }},
+      {"implicit_euler", [] { return make_implicit_euler(); }},
   };
   return r;
 }

@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "integrator.hpp"
@@ -26,6 +27,37 @@ std::shared_ptr<const LoadedPlugin> load_ref(PluginLoader& loader, const PluginR
 
 void emit_event(void* ctx, const pinsim_event* e) {
   static_cast<std::vector<pinsim_event>*>(ctx)->push_back(*e);
+}
+
+void add_triplet(void* ctx, uint32_t row, uint32_t col, double value) {
+  static_cast<std::vector<Eigen::Triplet<double>>*>(ctx)->emplace_back(row, col, value);
+}
+
+/// Central differences of one force's add_force in x (wrt_v false) or v (true): column j of
+/// the Jacobian is (f(q + eps e_j) - f(q - eps e_j)) / (2 eps), eps = 1e-6 max(1, |q_j|)
+/// (error O(eps^2) times the third derivative, rounding O(1e-16 |f| / eps)).
+void fd_jacobian(const ForceInstance& force, const State& s, bool wrt_v,
+                 std::vector<Eigen::Triplet<double>>& out) {
+  State p = s;
+  Eigen::Matrix2Xd fp(2, s.x.cols()), fm(2, s.x.cols());
+  Eigen::Matrix2Xd& q = wrt_v ? p.v : p.x;
+  const Eigen::Index n = q.size();
+  for (Eigen::Index j = 0; j < n; ++j) {
+    if (!(s.inv_mass[j / 2] > 0.0)) continue;  // pinned dofs never move
+    const double q0 = q.data()[j];
+    const double eps = 1e-6 * std::max(1.0, std::abs(q0));
+    q.data()[j] = q0 + eps;
+    fp.setZero();
+    force.add_force(p.view(), fp.data());
+    q.data()[j] = q0 - eps;
+    fm.setZero();
+    force.add_force(p.view(), fm.data());
+    q.data()[j] = q0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double d = (fp.data()[i] - fm.data()[i]) / (2.0 * eps);
+      if (d != 0.0) out.emplace_back(static_cast<int>(i), static_cast<int>(j), d);
+    }
+  }
 }
 
 }  // namespace
@@ -108,6 +140,39 @@ void Simulation::check_finite_forces(const State& s, const Eigen::Matrix2Xd& f) 
 void Simulation::drift(State& s, double dt) {
   const pinsim_event_sink sink{&events_, &emit_event};
   backend_->advance(s, dt, &sink);
+}
+
+void Simulation::assemble_jacobians(const State& s, Eigen::SparseMatrix<double>& dfdx,
+                                    Eigen::SparseMatrix<double>& dfdv) {
+  const auto n = static_cast<Eigen::Index>(2 * s.size());
+  std::vector<Eigen::Triplet<double>> tx, tv;
+  const pinsim_triplet_sink sx{&tx, &add_triplet}, sv{&tv, &add_triplet};
+  const pinsim_state_view view = s.view();
+  if (fd_warned_.size() != forces_.size()) fd_warned_.assign(forces_.size(), false);
+  for (std::size_t k = 0; k < forces_.size(); ++k) {
+    const ForceInstance& f = *forces_[k];
+    const uint32_t caps = f.plugin().table->capabilities;
+    const bool has_x = f.has_jacobians() && (caps & PINSIM_CAP_DFDX) != 0;
+    const bool has_v = f.has_jacobians() && (caps & PINSIM_CAP_DFDV) != 0;
+    const bool need_v = (caps & PINSIM_CAP_DISSIPATIVE) != 0 || (caps & PINSIM_CAP_ENERGY) == 0;
+    if (has_x || has_v) f.add_jacobians(view, has_x ? &sx : nullptr, has_v ? &sv : nullptr);
+    if (!has_x || (!has_v && need_v)) {
+      if (!fd_warned_[k]) {
+        fd_warned_[k] = true;
+        spdlog::warn(
+            "{}: plugin '{}' provides no {} Jacobian; using central finite differences of its "
+            "force (2 force evaluations per degree of freedom per step)",
+            f.context(), f.plugin().name(), !has_x ? "df/dx" : "df/dv");
+      }
+      if (!has_x) fd_jacobian(f, s, false, tx);
+      if (!has_v && need_v) fd_jacobian(f, s, true, tv);
+    }
+  }
+  dfdx.resize(n, n);
+  dfdv.resize(n, n);
+  dfdx.setFromTriplets(tx.begin(), tx.end());
+  dfdv.setFromTriplets(tv.begin(), tv.end());
+  ++jacobian_evals_;
 }
 
 void Simulation::check_finite_state() const {

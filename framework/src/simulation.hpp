@@ -2,6 +2,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <Eigen/SparseCore>
 #include <cstdint>
 #include <memory>
 #include <pinsim/state.hpp>
@@ -48,6 +49,15 @@ class Simulation {
   void compute_forces(const State& s, Eigen::Matrix2Xd& f);
   /// The backend's position update over dt; appends events.
   void drift(State& s, double dt);
+  /// Force Jacobians at s, 2N x 2N over dofs (2*particle + component): dfdx = sum df/dx,
+  /// dfdv = sum df/dv. Forces without a Jacobian get central finite differences of their
+  /// add_force (a one-time warning names the plugin); df/dv is differenced only for forces
+  /// flagged dissipative or without an energy; differenced columns of pinned particles are
+  /// left zero (their dofs never move).
+  void assemble_jacobians(const State& s, Eigen::SparseMatrix<double>& dfdx,
+                          Eigen::SparseMatrix<double>& dfdv);
+  /// Number of assemble_jacobians calls.
+  uint64_t jacobian_evaluations() const { return jacobian_evals_; }
 
   double kinetic_energy(const State& s) const;
   /// Sum of the energies of the forces that provide one.
@@ -82,6 +92,8 @@ class Simulation {
   std::vector<pinsim_event> events_;
   uint64_t step_ = 0;
   uint64_t force_evals_ = 0;
+  uint64_t jacobian_evals_ = 0;
+  std::vector<bool> fd_warned_;  ///< per force: finite-difference warning already given
   double e0_ = 0.0;
   double e_scale_ = 0.0;
   double max_drift_ = 0.0;
