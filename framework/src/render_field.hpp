@@ -26,8 +26,7 @@ struct FieldGrid {
   double at(int i, int j) const { return d[static_cast<std::size_t>(j) * nx + i]; }
 };
 
-/// Samples `f` over the map every `step` pixels (restricted to the pixel rectangle
-/// [px0, px1) x [py0, py1) when given; samples outside it are +inf).
+/// Samples `f` over the whole map every `step` pixels (a sub-region: pass a PixelMap of it).
 FieldGrid sample_field(const DistanceFn& f, const PixelMap& map, int step);
 
 /// One line piece in pixel coordinates.
