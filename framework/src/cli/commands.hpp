@@ -11,9 +11,10 @@ void add_plugins_command(CLI::App& app);
 void add_check_plugin_command(CLI::App& app);
 void add_bench_command(CLI::App& app);  ///< bench and merge
 void add_stress_command(CLI::App& app);
+void add_crosscheck_command(CLI::App& app);
 void add_render_command(CLI::App& app);
 void add_replay_command(CLI::App& app);
 void add_play_command(CLI::App& app);
-void add_crosscheck_command(CLI::App& app);
+void add_grade_command(CLI::App& app);
 
 }  // namespace pinsim::cli

@@ -33,10 +33,11 @@ int main(int argc, char** argv) {
   pinsim::cli::add_check_plugin_command(app);
   pinsim::cli::add_bench_command(app);
   pinsim::cli::add_stress_command(app);
+  pinsim::cli::add_crosscheck_command(app);
   pinsim::cli::add_render_command(app);
   pinsim::cli::add_replay_command(app);
   pinsim::cli::add_play_command(app);
-  pinsim::cli::add_crosscheck_command(app);
+  pinsim::cli::add_grade_command(app);
 
   try {
     app.parse(argc, argv);

@@ -1,0 +1,147 @@
+// pinsim grade --rubric R --submission PATH [--out DIR] [--batch [--jobs J] [--shard i/N]]
+// and the hidden child `pinsim grade-worker` that runs one test.
+#include <fcntl.h>
+#include <spdlog/spdlog.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <memory>
+
+#include "commands.hpp"
+#include "grader.hpp"
+#include "scene_error.hpp"
+
+namespace fs = std::filesystem;
+
+namespace pinsim::cli {
+namespace {
+
+struct GradeArgs {
+  std::string rubric, submission, out = "grade-out", sdk_prefix, shard = "0/1";
+  bool batch = false;
+  int jobs = 0;
+};
+
+fs::path self_exe() { return fs::read_symlink("/proc/self/exe"); }
+
+std::pair<std::size_t, std::size_t> parse_shard(const std::string& s) {
+  const auto slash = s.find('/');
+  try {
+    if (slash != std::string::npos) {
+      const std::size_t i = std::stoul(s.substr(0, slash)), n = std::stoul(s.substr(slash + 1));
+      if (n > 0 && i < n) return {i, n};
+    }
+  } catch (const std::exception&) {
+  }
+  throw SceneError("--shard " + s + ": expected i/N with 0 <= i < N, e.g. 0/4");
+}
+
+int grade_one(const GradeArgs& a) {
+  const Rubric rubric = load_rubric(a.rubric);
+  GradeOptions opt;
+  opt.submission = fs::absolute(a.submission);
+  opt.out = fs::absolute(a.out);
+  opt.pinsim_exe = self_exe();
+  // Default: the build tree's package (build/<preset>/sdk-package) or the install prefix.
+  const fs::path prefix = opt.pinsim_exe.parent_path().parent_path();
+  opt.sdk_prefix = !a.sdk_prefix.empty()                ? fs::path(a.sdk_prefix)
+                   : fs::exists(prefix / "sdk-package") ? prefix / "sdk-package"
+                                                        : prefix;
+  const auto r = grade_submission(rubric, opt);
+  std::cout << r["output"].get<std::string>();
+  spdlog::info("results written to {}", (fs::path(a.out) / "results.json").string());
+  return 0;
+}
+
+// Grades every entry of a folder of submissions (this shard's share), `jobs` at a time, each
+// in its own `pinsim grade` process, and writes batch.csv.
+int grade_batch(const GradeArgs& a) {
+  load_rubric(a.rubric);  // fail early on a bad rubric
+  const auto [shard, shards] = parse_shard(a.shard);
+  std::vector<fs::path> subs;
+  for (const auto& e : fs::directory_iterator(a.submission)) subs.push_back(e.path());
+  std::sort(subs.begin(), subs.end());
+  std::vector<fs::path> mine;
+  for (std::size_t i = shard; i < subs.size(); i += shards) mine.push_back(subs[i]);
+  const int jobs = a.jobs > 0 ? a.jobs : std::max(1L, ::sysconf(_SC_NPROCESSORS_ONLN));
+  std::map<pid_t, fs::path> running;
+  std::size_t next = 0;
+  while (next < mine.size() || !running.empty()) {
+    while (next < mine.size() && static_cast<int>(running.size()) < jobs) {
+      const fs::path s = mine[next++];
+      const std::string out = (fs::path(a.out) / s.filename()).string();
+      std::vector<std::string> argv = {self_exe().string(), "-q",     "grade",
+                                       "--rubric",          a.rubric, "--submission",
+                                       s.string(),          "--out",  out};
+      if (!a.sdk_prefix.empty()) argv.insert(argv.end(), {"--sdk-prefix", a.sdk_prefix});
+      std::fflush(nullptr);
+      const pid_t pid = ::fork();
+      if (pid == 0) {
+        std::vector<char*> c;
+        for (auto& x : argv) c.push_back(x.data());
+        c.push_back(nullptr);
+        const int devnull = ::open("/dev/null", O_WRONLY);
+        if (devnull >= 0) ::dup2(devnull, STDOUT_FILENO);
+        ::execv(c[0], c.data());
+        ::_exit(127);
+      }
+      if (pid > 0) running[pid] = s;
+    }
+    int status = 0;
+    const pid_t done = ::wait(&status);
+    if (done > 0) running.erase(done);
+  }
+  fs::create_directories(a.out);
+  const fs::path csv = fs::path(a.out) / ("batch-" + std::to_string(shard) + "-of-" +
+                                          std::to_string(shards) + ".csv");
+  std::ofstream out(csv);
+  out << "submission,score,max_score\n";
+  for (const auto& s : mine) {
+    std::ifstream in(fs::path(a.out) / s.filename() / "results.json");
+    const auto r = nlohmann::json::parse(in, nullptr, false);
+    if (r.is_discarded())
+      out << s.filename().string() << ",,\n";  // the grader itself failed on it: visible, not zero
+    else
+      out << s.filename().string() << "," << r["score"] << "," << r["max_score"] << "\n";
+  }
+  std::cout << "graded " << mine.size() << " submission(s) of " << subs.size() << " (shard "
+            << shard << "/" << shards << "); " << csv.string() << "\n";
+  return 0;
+}
+
+}  // namespace
+
+void add_grade_command(CLI::App& app) {
+  auto a = std::make_shared<GradeArgs>();
+  CLI::App* c = app.add_subcommand("grade", "Grade a submitted plugin or backend against a rubric");
+  c->add_option("--rubric", a->rubric, "Rubric file (configs/grading/*.json)")->required();
+  c->add_option("--submission", a->submission,
+                "Source folder (CMakeLists.txt using find_package(pinsim)), folder of libraries, "
+                "or one library; with --batch, a folder of such submissions")
+      ->required();
+  c->add_option("--out", a->out, "Folder for results.json, junit.xml, summary.txt");
+  c->add_option("--sdk-prefix", a->sdk_prefix,
+                "Where find_package(pinsim) finds the SDK (default: this program's prefix)");
+  c->add_flag("--batch", a->batch, "Grade every entry of the --submission folder");
+  c->add_option("--jobs", a->jobs, "Submissions graded at once (default: cores)");
+  c->add_option("--shard", a->shard, "With --batch: grade every N-th submission from i (i/N)");
+  c->callback([a] { throw CLI::RuntimeError(a->batch ? grade_batch(*a) : grade_one(*a)); });
+
+  struct WorkerArgs {
+    std::string rubric, libraries;
+    std::size_t test = 0;
+  };
+  auto w = std::make_shared<WorkerArgs>();
+  CLI::App* wc = app.add_subcommand("grade-worker", "(internal) run one rubric test");
+  wc->group("");  // hidden from --help
+  wc->add_option("--rubric", w->rubric)->required();
+  wc->add_option("--test", w->test)->required();
+  wc->add_option("--libraries", w->libraries)->required();
+  wc->callback([w] { throw CLI::RuntimeError(grade_worker(w->rubric, w->test, w->libraries)); });
+}
+
+}  // namespace pinsim::cli

@@ -1,0 +1,51 @@
+// Student collision backends for the grader tests, one per -DSUBMISSION value:
+//   0: correct (the reference sdf backend under the student's plugin name)
+//   1: tunnels (pure drift: never looks at the obstacles)
+//   2: applies an impulse while separating (reflects v whenever the ball is within reach of
+//      an obstacle, approaching or not)
+#include "sdf_backend.hpp"
+
+namespace {
+
+class StudentBackend : public pinsim::sdf::SdfBackend {
+ public:
+  using SdfBackend::SdfBackend;
+  static pinsim::PluginInfo info() {
+    auto i = SdfBackend::info();
+    i.name = "student_sdf";
+    return i;
+  }
+#if SUBMISSION == 1
+  void advance(pinsim::MutableState& s, double dt, pinsim::EventSink&) {
+    for (Eigen::Index i = 0; i < s.x.cols(); ++i) s.x.col(i) += dt * s.v.col(i);
+  }
+#elif SUBMISSION == 2
+  void advance(pinsim::MutableState& s, double dt, pinsim::EventSink& ev) {
+    for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
+      const pinsim::Vec2 p = s.x.col(i);
+      int64_t obstacle = -1;
+      const double d = distance(p, s.t, &obstacle) - s.radius[i];
+      if (d < s.v.col(i).norm() * dt + 1e-3) {
+        // Normal by central differences of the distance.
+        const double h = 1e-6;
+        pinsim::Vec2 n((distance(p + pinsim::Vec2(h, 0), s.t, nullptr) -
+                        distance(p - pinsim::Vec2(h, 0), s.t, nullptr)) /
+                           (2 * h),
+                       (distance(p + pinsim::Vec2(0, h), s.t, nullptr) -
+                        distance(p - pinsim::Vec2(0, h), s.t, nullptr)) /
+                           (2 * h));
+        n.normalize();
+        const double vn = s.v.col(i).dot(n);
+        s.v.col(i) -= 2.0 * vn * n;  // the bug: no check that vn < 0
+        pinsim_event e{s.t, i, obstacle, -1, {p.x(), p.y()}, {n.x(), n.y()}, vn, -vn};
+        ev.emit(e);
+      }
+      s.x.col(i) += dt * s.v.col(i);
+    }
+  }
+#endif
+};
+
+}  // namespace
+
+PINSIM_PLUGIN(StudentBackend)

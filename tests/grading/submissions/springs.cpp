@@ -1,0 +1,65 @@
+// Student "linear_spring" submissions for the grader tests, one per -DSUBMISSION value.
+// The physics variants reuse the check-plugin fixtures (tests/fixtures/wrong_spring.hpp);
+// the others misbehave the way real submissions do: crash, hang, allocate without bound.
+#include <cstdint>
+#include <cstdlib>
+#include <pinsim/plugin.hpp>
+#include <vector>
+
+#include "wrong_spring.hpp"
+
+namespace {
+
+#if SUBMISSION >= 10
+volatile std::uintptr_t null_address = 0;
+
+// Misbehaves before any physics can be checked, so the spring body it wraps does not matter.
+template <int Kind>
+class Misbehaving : public WrongSpring<Bug::MissingHalf> {
+ public:
+  using Base = WrongSpring<Bug::MissingHalf>;
+  explicit Misbehaving(const pinsim::CreateContext& c) : Base(c) {
+    if constexpr (Kind == 12) {
+      // Huge allocation, touched so it is real: fails under the grader's memory limit.
+      big_.assign(std::size_t{64} << 30, 1);
+    }
+  }
+  static pinsim::PluginInfo info() {
+    auto i = Base::info();
+    i.name = "linear_spring";
+    return i;
+  }
+  void add_force(const pinsim::StateView& s, pinsim::ForceOut& f) const {
+    if constexpr (Kind == 10) {
+      // An address the compiler cannot see is null, so the store really happens.
+      *reinterpret_cast<volatile int*>(null_address) = 42;  // segmentation fault
+    }
+    if constexpr (Kind == 11) {
+      volatile bool forever = true;
+      while (forever) {
+      }
+    }
+    Base::add_force(s, f);
+  }
+
+ private:
+  std::vector<char> big_;
+};
+using Submission = Misbehaving<SUBMISSION>;
+#else
+template <Bug B>
+class Renamed : public WrongSpring<B> {
+ public:
+  using WrongSpring<B>::WrongSpring;
+  static pinsim::PluginInfo info() {
+    auto i = WrongSpring<B>::info();
+    i.name = "linear_spring";
+    return i;
+  }
+};
+using Submission = Renamed<static_cast<Bug>(SUBMISSION)>;
+#endif
+
+}  // namespace
+
+PINSIM_PLUGIN(Submission)

@@ -1,0 +1,170 @@
+// The autograder on fixture submissions: each finishes with its expected score and message,
+// whatever it does (wrong physics, crash, hang, huge allocation, wrong ABI, no build).
+#include <sys/wait.h>
+
+#include <catch2/catch.hpp>
+#include <cstdio>
+#include <filesystem>
+#include <map>
+#include <nlohmann/json.hpp>
+
+#include "test_support.hpp"
+
+using Catch::Matchers::Contains;
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+const fs::path subs = PINSIM_GRADING_SUBMISSIONS;
+const fs::path src = PINSIM_GRADING_SOURCE;
+const fs::path configs = PINSIM_SOURCE_DIR "/configs/grading";
+
+json grade(const fs::path& rubric, const fs::path& submission, const std::string& tag) {
+  const fs::path out = pinsim::test::temp_dir("grade-" + tag);
+  const std::string cmd = std::string(PINSIM_BIN) + " -q grade --rubric " + rubric.string() +
+                          " --submission " + submission.string() + " --out " + out.string() +
+                          " > /dev/null 2>&1";
+  const int status = std::system(cmd.c_str());
+  REQUIRE(WIFEXITED(status));
+  REQUIRE(WEXITSTATUS(status) == 0);  // the grader never fails, whatever the submission does
+  REQUIRE(fs::exists(out / "junit.xml"));
+  REQUIRE(fs::exists(out / "summary.txt"));
+  return json::parse(pinsim::test::read_file(out / "results.json"));
+}
+
+std::map<std::string, json> by_name(const json& results) {
+  std::map<std::string, json> m;
+  for (const auto& t : results["tests"]) m[t["name"].get<std::string>()] = t;
+  return m;
+}
+
+// A folder holding copies of the given libraries: a "built library" submission.
+fs::path library_folder(const std::string& tag, const std::vector<fs::path>& libs) {
+  const fs::path d = pinsim::test::temp_dir("sub-" + tag);
+  for (const auto& l : libs) fs::copy_file(l, d / l.filename());
+  return d;
+}
+
+}  // namespace
+
+TEST_CASE("grader: correct shipped plugins get full marks on the force assignment") {
+  const fs::path plugins = PINSIM_BUILD_PLUGIN_DIR;
+  const fs::path sub = library_folder("correct", {plugins / "libpinsim_plugin_linear_spring.so",
+                                                  plugins / "libpinsim_plugin_damped_spring.so",
+                                                  plugins / "libpinsim_plugin_bending.so"});
+  const json r = grade(configs / "force_assignment.json", sub, "correct");
+  CAPTURE(r["output"].get<std::string>());
+  CHECK(r["max_score"].get<double>() > 0);
+  CHECK(r["score"] == r["max_score"]);
+  // Gradescope fields on every test.
+  for (const auto& t : r["tests"])
+    for (const char* k : {"name", "number", "score", "max_score", "status", "output", "visibility"})
+      CHECK(t.contains(k));
+}
+
+TEST_CASE("grader: each broken force submission gets its expected score and message") {
+  const fs::path rubric = src / "rubric_springs.json";
+  struct Case {
+    std::string name;
+    double score;
+    std::vector<std::string> failed;  // tests that must fail
+    std::string message;              // in the first failed test's output
+  };
+  const std::vector<Case> cases = {
+      {"sign_error",
+       3,
+       {"f = -grad E", "df/dx", "agrees with the reference", "hanging chain"},
+       "-dE/dx"},
+      {"missing_half", 6, {"f = -grad E", "agrees with the reference"}, "does not converge"},
+      {"wrong_jacobian", 9, {"df/dx"}, "df/dx"},
+      {"nan_degenerate", 9, {"finite on degenerate states"}, "n"},
+      {"segfault", 1, {"f = -grad E", "hanging chain"}, "segmentation fault"},
+      {"infinite_loop", 1, {"f = -grad E", "hanging chain"}, "limit"},
+      {"huge_allocation", 1, {"f = -grad E", "hanging chain"}, "alloc"},
+  };
+  for (const auto& c : cases) {
+    CAPTURE(c.name);
+    const json r = grade(rubric, subs / c.name, c.name);
+    CAPTURE(r["output"].get<std::string>());
+    CHECK(r["max_score"].get<double>() == 10);
+    CHECK(r["score"].get<double>() == c.score);
+    auto tests = by_name(r);
+    for (const auto& f : c.failed) {
+      CAPTURE(f);
+      CHECK(tests[f]["status"] == "failed");
+      CHECK(tests[f]["score"].get<double>() == 0);
+    }
+    CHECK_THAT(tests[c.failed.front()]["output"].get<std::string>(), Contains(c.message));
+  }
+}
+
+TEST_CASE("grader: a library of the wrong ABI fails every test, saying why") {
+  const fs::path sub =
+      library_folder("abi", {fs::path(PINSIM_TEST_FIXTURE_DIR) / "libfixture_wrong_abi.so"});
+  const json r = grade(src / "rubric_springs.json", sub, "abi");
+  CHECK(r["score"].get<double>() == 0);
+  CHECK_THAT(r["tests"][0]["output"].get<std::string>(), Contains("wrong plugin ABI version"));
+}
+
+TEST_CASE("grader: a source folder that does not compile fails every test with the log") {
+  const json r =
+      grade(src / "rubric_springs.json", src / "submissions/does_not_compile", "nobuild");
+  CHECK(r["score"].get<double>() == 0);
+  const std::string out = r["tests"][0]["output"].get<std::string>();
+  CHECK_THAT(out, Contains("the submission does not compile"));
+  CHECK_THAT(out, Contains("spring.cpp:8:3: error: expected"));  // the compiler's own words
+}
+
+TEST_CASE("grader: a correct source folder is built against the SDK package and gets full marks") {
+  const json r = grade(src / "rubric_springs.json", src / "submissions/correct_source", "source");
+  CAPTURE(r["output"].get<std::string>());
+  CHECK(r["score"].get<double>() == 10);
+  CHECK(r["max_score"].get<double>() == 10);
+}
+
+TEST_CASE("grader: collision backends against the reference sdf backend") {
+  const fs::path rubric = configs / "collision_assignment.json";
+  const json good = grade(rubric, subs / "correct_backend", "good-backend");
+  CAPTURE(good["output"].get<std::string>());
+  CHECK(good["score"] == good["max_score"]);
+  // Box2D's second opinion is reported (not scored) on every agreement test.
+  auto g = by_name(good);
+  CHECK_THAT(g["corner of a box: same path as the reference"]["output"].get<std::string>(),
+             Contains("second opinion (box2d, not scored): yours differs from it by"));
+
+  const json tunnel = grade(rubric, subs / "tunnelling_backend", "tunnel");
+  CAPTURE(tunnel["output"].get<std::string>());
+  auto t = by_name(tunnel);
+  CHECK(t["thin wall at 50 wall thicknesses per step: no tunnelling"]["status"] == "failed");
+  CHECK_THAT(
+      t["thin wall at 50 wall thicknesses per step: no tunnelling"]["output"].get<std::string>(),
+      Contains("inside obstacle thin_wall"));
+  CHECK(tunnel["score"].get<double>() < tunnel["max_score"].get<double>() / 2);
+
+  const json sep = grade(rubric, subs / "separating_backend", "separating");
+  CAPTURE(sep["output"].get<std::string>());
+  auto s = by_name(sep);
+  CHECK(s["ball leaving a floor: no impulse while separating"]["status"] == "failed");
+  CHECK_THAT(s["ball leaving a floor: no impulse while separating"]["output"].get<std::string>(),
+             Contains("while separating"));
+}
+
+TEST_CASE("grader: batch mode grades a folder of submissions in shards") {
+  const fs::path batch = pinsim::test::temp_dir("batch-in");
+  for (const char* n : {"sign_error", "wrong_jacobian", "segfault"})
+    fs::copy(subs / n, batch / n, fs::copy_options::recursive);
+  const fs::path out = pinsim::test::temp_dir("batch-out");
+  for (int shard = 0; shard < 2; ++shard) {
+    const std::string cmd = std::string(PINSIM_BIN) + " -q grade --batch --jobs 2 --shard " +
+                            std::to_string(shard) + "/2 --rubric " +
+                            (src / "rubric_springs.json").string() + " --submission " +
+                            batch.string() + " --out " + out.string() + " > /dev/null 2>&1";
+    REQUIRE(std::system(cmd.c_str()) == 0);
+  }
+  // Shard 0 takes entries 0 and 2 (segfault, wrong_jacobian), shard 1 entry 1 (sign_error).
+  CHECK(pinsim::test::read_file(out / "batch-0-of-2.csv") ==
+        "submission,score,max_score\nsegfault,1.0,10.0\nwrong_jacobian,9.0,10.0\n");
+  CHECK(pinsim::test::read_file(out / "batch-1-of-2.csv") ==
+        "submission,score,max_score\nsign_error,3.0,10.0\n");
+}
