@@ -48,6 +48,13 @@ Recorder::Recorder(const fs::path& dir, const Scene& scene, bool overwrite)
         throw std::runtime_error(dir_.string() + ": holds an earlier run (" + f +
                                  "); choose another --out or pass --overwrite");
   }
+  // The scene exactly as run (after --set overrides; the embedded one too), so that render,
+  // replay and a rerun need nothing else from the run folder.
+  {
+    std::ofstream out(dir_ / "scene.json");
+    out << scene.doc.dump(2) << "\n";
+    if (!out) throw std::runtime_error((dir_ / "scene.json").string() + ": cannot write");
+  }
   traj_ = open_file(dir_ / "trajectory.csv", "t,particle,x,y,vx,vy\n");
   events_ = open_file(dir_ / "events.csv",
                       "t,particle,obstacle,other_particle,x,y,nx,ny,vn_before,vn_after\n");

@@ -208,6 +208,23 @@ RunData load_run(const fs::path& dir) {
   return r;
 }
 
+std::optional<Scene> run_scene(const RunData& run, const std::vector<std::string>& overrides) {
+  const fs::path stored = run.dir / "scene.json";
+  if (fs::is_regular_file(stored)) {
+    std::ifstream in(stored);
+    std::stringstream text;
+    text << in.rdbuf();
+    fs::path base = run.dir;
+    if (run.summary.is_object() && run.summary.contains("scene_dir") &&
+        run.summary["scene_dir"].is_string())
+      base = run.summary["scene_dir"].get<std::string>();
+    return parse_scene(text.str(), stored.string(), base, overrides);
+  }
+  const fs::path file = run_scene_file(run);
+  if (file.empty()) return std::nullopt;
+  return load_scene(file, overrides);
+}
+
 fs::path run_scene_file(const RunData& run) {
   if (!run.summary.is_object() || !run.summary.contains("scene") ||
       !run.summary["scene"].is_string())

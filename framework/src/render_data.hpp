@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -52,6 +53,11 @@ std::vector<std::filesystem::path> sub_run_dirs(const std::filesystem::path& dir
 /// to the working directory), then relative to the run folder and its parents. Empty if
 /// not found.
 std::filesystem::path run_scene_file(const RunData& run);
+
+/// The scene a run was made from: the folder's scene.json (the document as run, after
+/// overrides; relative paths resolved against summary.json's "scene_dir"), else the file
+/// run_scene_file finds. Further overrides apply on top. Empty if neither exists.
+std::optional<Scene> run_scene(const RunData& run, const std::vector<std::string>& overrides);
 
 /// Axis-aligned world rectangle.
 struct ViewBox {

@@ -21,6 +21,7 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
   nlohmann::json summary = {
       {"status", "running"},
       {"scene", scene.label},
+      {"scene_dir", std::filesystem::absolute(scene.base_dir).string()},
       {"name", scene.name},
       {"backend", sim.backend().plugin().name()},
       {"integrator", sim.integrator_name()},

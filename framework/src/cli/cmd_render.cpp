@@ -47,20 +47,15 @@ int render_command(const RenderArgs& a) {
       if (default_out.empty()) default_out = fs::path(in).replace_extension(".png").filename();
     }
   }
-  if (scene_file.empty())
-    for (const auto& r : job.runs) {
-      const fs::path s = run_scene_file(r);
-      if (!s.empty()) {
-        scene_file = s.string();
-        break;
-      }
-    }
   if (!scene_file.empty())
     job.scene = load_scene(scene_file, a.set);
-  else if (!job.runs.empty())
+  else
+    for (const auto& r : job.runs)
+      if ((job.scene = run_scene(r, a.set))) break;
+  if (!job.scene && !job.runs.empty())
     spdlog::warn(
-        "the run's scene file was not found (summary.json \"scene\"); drawing without "
-        "obstacles (give it with --scene)");
+        "the run's scene was not found (no scene.json in the run folder, summary.json "
+        "\"scene\" not found); drawing without obstacles (give it with --scene)");
   if (!job.scene && job.runs.empty()) throw std::runtime_error("render: nothing to draw");
 
   RenderOptions opt;

@@ -24,15 +24,15 @@ int replay_command(const ReplayArgs& a) {
   if (!is_run_dir(a.run))
     throw std::runtime_error(a.run + ": not a run folder (no trajectory.csv)");
   const RunData run = load_run(a.run);
-  fs::path scene_file = a.scene;
-  if (scene_file.empty()) scene_file = run_scene_file(run);
   std::optional<Scene> scene;
-  if (!scene_file.empty())
-    scene = load_scene(scene_file, a.set);
+  if (!a.scene.empty())
+    scene = load_scene(a.scene, a.set);
   else
+    scene = run_scene(run, a.set);
+  if (!scene)
     spdlog::warn(
-        "the run's scene file was not found (summary.json \"scene\"); the page shows no "
-        "obstacles (give it with --scene)");
+        "the run's scene was not found (no scene.json in the run folder, summary.json "
+        "\"scene\" not found); the page shows no obstacles (give it with --scene)");
   ReplayOptions opt;
   opt.width = a.width;
   if (!a.view.empty()) opt.view = parse_view(a.view);

@@ -161,6 +161,22 @@ TEST_CASE("render: a run as PNG and SVG, with its path and contacts") {
   CHECK(count(svg, "<path") >= 5);   // contours, path, contact marks, ball
 }
 
+TEST_CASE("render: a run made with --set overrides is drawn as it ran, from its scene.json") {
+  // The disc moved from x = 0.5 to x = 0.75 on the command line: the run folder keeps the
+  // scene as run, and the picture (no --scene given) shows the disc where the ball met it.
+  const fs::path run = make_run("render-set", "--set obstacles[1].shape.center=[0.75,0.3]");
+  const auto doc = nlohmann::json::parse(test::read_file(run / "scene.json"));
+  CHECK(doc["obstacles"][1]["shape"]["center"] == nlohmann::json::array({0.75, 0.3}));
+  const fs::path png_file = run / "set.png";
+  const auto r = pinsim_cli("-q render " + run.string() + " " + kView +
+                            " --no-trajectories --out " + png_file.string());
+  REQUIRE(r.code == 0);
+  Png png(png_file);
+  REQUIRE(png.ok());
+  CHECK(png.is_dark(px(0.75), py(0.3)));   // the disc's centre as run
+  CHECK(!png.is_dark(px(0.45), py(0.3)));  // not where the scene file has it
+}
+
 TEST_CASE("render: a folder of runs (a crosscheck) overlays both paths") {
   const fs::path report = test::temp_dir("render-overlay");
   auto r = pinsim_cli("-q run " + kScene + " --out " + (report / "a").string());
