@@ -22,6 +22,15 @@ std::vector<fs::path> plugin_search_dirs(const std::vector<fs::path>& scene_path
       if (!item.empty()) dirs.emplace_back(item);
   }
   dirs.emplace_back(PINSIM_BUILD_PLUGIN_DIR);
+  // The install prefix: relative to the running program first, so a moved or copied install
+  // (a container image, an unpacked tarball) finds its own plugins, then the configured one.
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path rel = (exe.parent_path() / PINSIM_INSTALL_PLUGIN_RELDIR).lexically_normal();
+    if (fs::is_directory(rel, ec) && rel != fs::path(PINSIM_INSTALL_PLUGIN_DIR))
+      dirs.push_back(rel);
+  }
   dirs.emplace_back(PINSIM_INSTALL_PLUGIN_DIR);
   return dirs;
 }

@@ -47,8 +47,8 @@ int run_command(const RunArgs& a) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   spdlog::debug("{}: {} particles, {} force(s), backend {}, {} steps of dt = {}", scene.label,
-               scene.particles.size(), scene.forces.size(),
-               a.backend.empty() ? scene.backend.name : a.backend, scene.steps(), scene.dt);
+                scene.particles.size(), scene.forces.size(),
+                a.backend.empty() ? scene.backend.name : a.backend, scene.steps(), scene.dt);
   RunResult r = run_scene(scene, loader, rs);
   if (tty) std::fprintf(stderr, "\r%*s\r", 40, "");
   const auto& s = r.summary;
@@ -71,7 +71,8 @@ void add_run_command(CLI::App& app) {
   c->add_option("--set", a->set, "Override a scene value, e.g. --set time.dt=0.0005")->take_all();
   c->add_option("--backend", a->backend, "Use this collision backend instead of the scene's");
   c->add_option("--integrator", a->integrator,
-                "Use this integrator instead of the scene's (symplectic_euler, velocity_verlet)");
+                "Use this integrator instead of the scene's (explicit_euler, symplectic_euler, "
+                "velocity_verlet, rk4, implicit_euler)");
   c->add_flag("--overwrite", a->overwrite, "Replace an earlier run's files in the output folder");
   c->callback([a] { throw CLI::RuntimeError(run_command(*a)); });
 }
