@@ -303,7 +303,7 @@ void report(const sweep::Table& t, const fs::path& out) {
        << ".svg'\nset logscale xy\nset format x '10^{%L}'\nset format y '10^{%L}'\n"
        << "set xlabel 'largest position error over the trajectory'\n"
        << "set ylabel 'median wall time per run (s)'\nset title 'work-precision: " << cname
-       << "'\nset key outside right\nset grid\nplot ";
+       << "' noenhanced\nset key outside right\nset grid\nplot ";
     int k = 0;
     for (auto& [sname, pts] : ss) {
       std::string file = "wp_" + cname + "_" + std::to_string(k) + ".dat";
@@ -313,7 +313,7 @@ void report(const sweep::Table& t, const fs::path& out) {
         if (p[2] > 0.0 && std::isfinite(p[2]) && p[3] > 0.0)
           dat << sweep::num(p[2]) << ' ' << sweep::num(p[3]) << ' ' << sweep::num(p[0]) << '\n';
       gp << (k ? ", \\\n     " : "") << "'" << file << "' using 1:2 with linespoints title '"
-         << sname << "'";
+         << sname << "' noenhanced";  // names hold '_', not subscripts
       ++k;
     }
     gp << "\n";

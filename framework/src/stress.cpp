@@ -345,7 +345,7 @@ void report(const sweep::Table& t, const fs::path& out) {
     gp << "set terminal svg size 800,600 dynamic\nset output 'heat_" << name << ".svg'\n"
        << "set logscale xy\nset xlabel '" << (stiff ? "dt (s)" : "ball speed (units/s)")
        << "'\nset ylabel '" << (stiff ? "stiffness" : "wall thickness") << "'\nset title '" << name
-       << "'\nset cbrange [0:5]\n"
+       << "' noenhanced\nset cbrange [0:5]\n"
        << "set palette defined (0 '#1a9850', 1 '#fee08b', 2 '#fdae61', 3 '#d73027', 4 "
           "'#67001f', 5 '#404040')\n"
        << "set cbtics ('stable' 0, 'penetration' 1, 'tunnelled' 2, 'blow-up' 3, 'NaN' 4, "
