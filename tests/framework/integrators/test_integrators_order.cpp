@@ -58,6 +58,40 @@ double fitted_order(const std::vector<double>& h, const std::vector<double>& err
   return (n * sxy - sx * sy) / (n * sxx - sx * sx);
 }
 
+// Each integrator's theoretical order.
+const std::vector<std::pair<std::string, double>> kTheory = {{"explicit_euler", 1.0},
+                                                             {"symplectic_euler", 1.0},
+                                                             {"velocity_verlet", 2.0},
+                                                             {"rk4", 4.0},
+                                                             {"implicit_euler", 1.0}};
+
+// For every integrator: runs scene_for(integrator, h) with N = n0, 2 n0, 4 n0, 8 n0 steps over
+// [0, T] (n0 = 40 for RK4, else 400), takes the largest error_at(state, t) over each
+// trajectory, and checks the least-squares order is within 0.15 of theory.
+template <class SceneFor, class ErrorAt>
+void check_orders_against_closed_form(double T, SceneFor scene_for, ErrorAt error_at) {
+  PluginLoader loader(plugin_search_dirs());
+  for (const auto& [name, p] : kTheory) {
+    const int n0 = name == "rk4" ? 40 : 400;
+    std::vector<double> hs, errs;
+    for (int k = 0; k < 4; ++k) {
+      const int N = n0 << k;
+      const double h = T / N;
+      Simulation sim(make_scene(scene_for(name, h), name), loader);
+      double err = 0.0;
+      for (int n = 1; n <= N; ++n) {
+        sim.step();
+        err = std::max(err, error_at(sim.state(), n * h));
+      }
+      hs.push_back(h);
+      errs.push_back(err);
+    }
+    const double q = fitted_order(hs, errs);
+    INFO(name << ": errors " << errs[0] << " .. " << errs[3] << ", measured order " << q);
+    CHECK(std::abs(q - p) <= 0.15);
+  }
+}
+
 }  // namespace
 
 TEST_CASE("harmonic oscillator: energy factor per step equals the closed form") {
@@ -186,38 +220,18 @@ TEST_CASE("stability limits: bounded just below the theoretical limit, growing j
 }
 
 TEST_CASE("measured order on the harmonic oscillator is within 0.15 of theory") {
-  // x(t) = x0 cos(w t) + v0/w sin(w t), v(t) = -w x0 sin(w t) + v0 cos(w t) per component.
-  // Error: largest |x_n - x(t_n)| over the trajectory; order: least-squares slope over 4 h.
-  PluginLoader loader(plugin_search_dirs());
+  // x(t) = x0 cos(w t) + v0/w sin(w t) per component; error: largest |x_n - x(t_n)|.
   const double w = 3.0, T = 2.0;
   const Eigen::Vector2d x0(1.0, 0.0), v0(0.0, 1.5);
-  const std::vector<std::pair<std::string, double>> theory = {{"explicit_euler", 1.0},
-                                                              {"symplectic_euler", 1.0},
-                                                              {"velocity_verlet", 2.0},
-                                                              {"rk4", 4.0},
-                                                              {"implicit_euler", 1.0}};
-  for (const auto& [name, p] : theory) {
-    const int n0 = name == "rk4" ? 40 : 400;
-    std::vector<double> hs, errs;
-    for (int k = 0; k < 4; ++k) {
-      const int N = n0 << k;
-      const double h = T / N;
-      Simulation sim(
-          make_scene(oscillator(w, h, T, name, {x0.x(), x0.y()}, {v0.x(), v0.y()}), "osc"), loader);
-      double err = 0.0;
-      for (int n = 1; n <= N; ++n) {
-        sim.step();
-        const double t = n * h;
+  check_orders_against_closed_form(
+      T,
+      [&](const std::string& name, double h) {
+        return oscillator(w, h, T, name, {x0.x(), x0.y()}, {v0.x(), v0.y()});
+      },
+      [&](const State& s, double t) {
         const Eigen::Vector2d exact = x0 * std::cos(w * t) + v0 / w * std::sin(w * t);
-        err = std::max(err, (sim.state().x.col(1) - exact).norm());
-      }
-      hs.push_back(h);
-      errs.push_back(err);
-    }
-    const double q = fitted_order(hs, errs);
-    INFO(name << ": errors " << errs[0] << " .. " << errs[3] << ", measured order " << q);
-    CHECK(std::abs(q - p) <= 0.15);
-  }
+        return (s.x.col(1) - exact).norm();
+      });
 }
 
 namespace {
@@ -256,12 +270,7 @@ TEST_CASE("measured order on a nonlinear elastic pendulum is within 0.15 of theo
   const double T = 1.0;
   const int S = 8;  // divides every step count below
   const auto ref = samples(make_scene(elastic_pendulum(T / 32768, T, "rk4"), "ref"), S);
-  const std::vector<std::pair<std::string, double>> theory = {{"explicit_euler", 1.0},
-                                                              {"symplectic_euler", 1.0},
-                                                              {"velocity_verlet", 2.0},
-                                                              {"rk4", 4.0},
-                                                              {"implicit_euler", 1.0}};
-  for (const auto& [name, p] : theory) {
+  for (const auto& [name, p] : kTheory) {
     const int n0 = name == "rk4" ? 40 : 320;
     std::vector<double> hs, errs;
     for (int k = 0; k < 4; ++k) {
@@ -286,47 +295,28 @@ TEST_CASE("measured order on the damped oscillator (velocity-dependent force) is
   // x(t) = e^{-zeta w0 t} (x0 cos(wd t) + (v0 + zeta w0 x0) / wd sin(wd t)).
   // Velocity Verlet's closing half kick needs f(x_{n+1}, v_{n+1}): its velocity predictor
   // keeps it second order here (without it: order 1.04).
-  PluginLoader loader(plugin_search_dirs());
   const double m = 1.0, ks = 9.0, kd = 0.6, T = 2.0, x0 = 1.0, v0 = 0.5;
-  const double w0 = std::sqrt(ks / m), zeta = kd / (2 * m * w0),
-               wd = w0 * std::sqrt(1 - zeta * zeta);
-  const std::vector<std::pair<std::string, double>> theory = {{"explicit_euler", 1.0},
-                                                              {"symplectic_euler", 1.0},
-                                                              {"velocity_verlet", 2.0},
-                                                              {"rk4", 4.0},
-                                                              {"implicit_euler", 1.0}};
-  for (const auto& [name, p] : theory) {
-    const int n0 = name == "rk4" ? 40 : 400;
-    std::vector<double> hs, errs;
-    for (int k = 0; k < 4; ++k) {
-      const int N = n0 << k;
-      const double h = T / N;
-      const json doc = {{"time", {{"dt", h}, {"duration", T}}},
-                        {"integrator", name},
-                        {"particles",
-                         {{{"x", {0.0, 0.0}}, {"pinned", true}},
-                          {{"x", {x0, 0.0}}, {"v", {v0, 0.0}}, {"mass", m}}}},
-                        {"forces",
-                         {{{"type", "damped_spring"},
-                           {"params", {{"ks", ks}, {"kd", kd}, {"rest_length", 0.0}}},
-                           {"elements", {{0, 1}}}}}}};
-      Simulation sim(make_scene(doc, "damped"), loader);
-      double err = 0.0;
-      for (int n = 1; n <= N; ++n) {
-        sim.step();
-        const double t = n * h;
+  const double w0 = std::sqrt(ks / m), zeta = kd / (2 * m * w0);
+  const double wd = w0 * std::sqrt(1 - zeta * zeta);
+  check_orders_against_closed_form(
+      T,
+      [&](const std::string& name, double h) {
+        return json{{"time", {{"dt", h}, {"duration", T}}},
+                    {"integrator", name},
+                    {"particles",
+                     {{{"x", {0.0, 0.0}}, {"pinned", true}},
+                      {{"x", {x0, 0.0}}, {"v", {v0, 0.0}}, {"mass", m}}}},
+                    {"forces",
+                     {{{"type", "damped_spring"},
+                       {"params", {{"ks", ks}, {"kd", kd}, {"rest_length", 0.0}}},
+                       {"elements", {{0, 1}}}}}}};
+      },
+      [&](const State& s, double t) {
         const double exact =
             std::exp(-zeta * w0 * t) *
             (x0 * std::cos(wd * t) + (v0 + zeta * w0 * x0) / wd * std::sin(wd * t));
-        err = std::max(err, std::abs(sim.state().x(0, 1) - exact));
-      }
-      hs.push_back(h);
-      errs.push_back(err);
-    }
-    const double q = fitted_order(hs, errs);
-    INFO(name << ": errors " << errs[0] << " .. " << errs[3] << ", measured order " << q);
-    CHECK(std::abs(q - p) <= 0.15);
-  }
+        return std::abs(s.x(0, 1) - exact);
+      });
 }
 
 TEST_CASE("force evaluations per step: 1 Euler-type, 2 Verlet, 4 RK4") {
