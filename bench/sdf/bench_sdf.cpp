@@ -1,105 +1,34 @@
-// bench_sdf: SDF query time and ns per ball-step on configs/pinball.json.
-// Prints CSV: benchmark,variant,balls,repeats,median,unit,state_hash
-// Usage: bench_sdf [scene.json]   (default: the source tree's configs/pinball.json)
-#include <time.h>
-
-#include <algorithm>
-#include <chrono>
+// bench_sdf: SDF query time on configs/pinball.json, and ns per ball-step of the sdf and
+// box2d backends on the same scenes in one run, with the ratio box2d / sdf.
+// Prints CSV: benchmark,backend,variant,balls,steps,repeats,median,unit,state_hash
+// then a comparison table: case,balls,steps,sdf_ns,box2d_ns,ratio_box2d_over_sdf.
+// Usage: bench_sdf [scene.json [--trace]]   (default: the source tree's configs/pinball.json)
+// Box2D runs with the scene's crosscheck.params.box2d if it has them, else with
+// curve_segments 256 (the pinball top) and the sdf backend's rest_speed.
+#include <cmath>
 #include <cstdio>
-#include <cstring>
 #include <fstream>
-#include <memory>
 #include <random>
 #include <sstream>
 #include <string>
 #include <vector>
 
+#include "bench_world.hpp"
+#include "box2d_backend.hpp"
 #include "sdf_backend.hpp"
 
 using namespace pinsim;
-using namespace pinsim::sdf;
+using namespace pinsim::bench;
 using nlohmann::json;
-/// Thread CPU time, so that a busy shared machine does not inflate the figures.
-struct Clock {
-  struct time_point {
-    double ns;
-    std::chrono::duration<double, std::nano> operator-(const time_point& o) const {
-      return std::chrono::duration<double, std::nano>(ns - o.ns);
-    }
-  };
-  static time_point now() {
-    timespec ts{};
-    clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
-    return {1e9 * static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec)};
-  }
-};
+using pinsim::box2d::Box2dBackend;
+using pinsim::sdf::SdfBackend;
 
 namespace {
 
-json params_for(const json& scene, const json& over = json::object()) {
-  json p = json::object();
-  for (const auto& d : SdfBackend::info().params) p[d.name] = d.def[0];
-  if (scene.contains("backend") && scene["backend"].contains("params"))
-    for (const auto& [k, v] : scene["backend"]["params"].items()) p[k] = v;
-  for (const auto& [k, v] : over.items()) p[k] = v;
-  return p;
-}
-
-json backend_scene(const json& s) {
-  json b = json::object();
-  for (const char* k : {"obstacles", "inputs", "contacts"})
-    if (s.contains(k)) b[k] = s[k];
-  return b;
-}
-
-struct World {
-  std::vector<double> x, v, w, r;
-  std::unique_ptr<SdfBackend> be;
-  double t = 0.0;
-  uint64_t events = 0;
-
-  World(const json& scene, const json& params, std::vector<double> x0, std::vector<double> v0,
-        double radius, const json& contacts = nullptr)
-      : x(std::move(x0)), v(std::move(v0)), w(x.size() / 2, 1.0), r(x.size() / 2, radius) {
-    pinsim_state_view sv{w.size(), 0.0, x.data(), v.data(), w.data(), r.data()};
-    json bs = backend_scene(scene);
-    if (!contacts.is_null()) bs["contacts"] = contacts;
-    CreateContext ctx{Params(params), bs, StateView(sv), Elements{}, "bench"};
-    be = std::make_unique<SdfBackend>(ctx);
-  }
-  void step(double dt, double gx, double gy) {
-    for (std::size_t i = 0; i < w.size(); ++i) {
-      v[2 * i] += dt * gx;
-      v[2 * i + 1] += dt * gy;
-    }
-    pinsim_state_mut sm{w.size(), t, x.data(), v.data(), w.data(), r.data()};
-    MutableState ms(sm);
-    pinsim_event_sink sink{this,
-                           [](void* c, const pinsim_event*) { ++static_cast<World*>(c)->events; }};
-    EventSink es(&sink);
-    be->advance(ms, dt, es);
-    t += dt;
-  }
-  uint64_t hash() const {  // FNV-1a over the positions' bytes
-    uint64_t h = 1469598103934665603ull;
-    for (double d : x) {
-      unsigned char b[sizeof d];
-      std::memcpy(b, &d, sizeof d);
-      for (unsigned char c : b) h = (h ^ c) * 1099511628211ull;
-    }
-    return h;
-  }
-};
-
-double median(std::vector<double> a) {
-  std::sort(a.begin(), a.end());
-  return a[a.size() / 2];
-}
-
-void row(const char* bench, const std::string& variant, std::size_t balls, int repeats, double med,
-         const char* unit, uint64_t hash) {
-  std::printf("%s,%s,%zu,%d,%.2f,%s,%016llx\n", bench, variant.c_str(), balls, repeats, med, unit,
-              static_cast<unsigned long long>(hash));
+void row(const char* bench, const char* backend, const std::string& variant, std::size_t balls,
+         int steps, int repeats, double med, const char* unit, uint64_t hash) {
+  std::printf("%s,%s,%s,%zu,%d,%d,%.2f,%s,%016llx\n", bench, backend, variant.c_str(), balls, steps,
+              repeats, med, unit, static_cast<unsigned long long>(hash));
   std::fflush(stdout);
 }
 
@@ -123,27 +52,34 @@ int main(int argc, char** argv) {
       gy = f["params"]["g"][1];
     }
   const double radius = scene["particles"][0]["radius"];
+  const json no_params = json::object();
+  const json& sdf_params = scene.contains("backend") && scene["backend"].contains("params")
+                               ? scene["backend"]["params"]
+                               : no_params;
+  json box2d_params = json::object();
+  if (scene.contains("crosscheck") && scene["crosscheck"].contains("params") &&
+      scene["crosscheck"]["params"].contains("box2d")) {
+    box2d_params = scene["crosscheck"]["params"]["box2d"];
+  } else {
+    box2d_params["curve_segments"] = 256;
+    box2d_params["rest_speed"] = params_for<SdfBackend>(sdf_params)["rest_speed"];
+  }
+  const int run_steps = static_cast<int>(std::lround(duration / dt));
+  const std::vector<double> ball_x0 = {scene["particles"][0]["x"][0],
+                                       scene["particles"][0]["x"][1]};
+
   if (argc > 2 && std::string(argv[2]) == "--trace") {
     // the scene's ball: its contacts (time, obstacle id) and position every 0.25 s
-    World w(scene, params_for(scene),
-            {scene["particles"][0]["x"][0], scene["particles"][0]["x"][1]}, {0.0, 0.0}, radius);
+    BenchWorld<SdfBackend> w(scene, params_for<SdfBackend>(sdf_params), ball_x0, {0.0, 0.0},
+                             radius);
     pinsim_event_sink sink{&w, [](void* c, const pinsim_event* e) {
-                             const auto* wp = static_cast<World*>(c);
+                             const auto* wp = static_cast<BenchWorld<SdfBackend>*>(c);
                              std::printf("event t=%.4f obstacle=%s vn %.3f -> %.3f\n", e->t,
                                          wp->be->field().obstacle(e->obstacle).id.c_str(),
                                          e->vn_before, e->vn_after);
                            }};
-    const int steps = static_cast<int>(std::lround(duration / dt));
-    for (int s = 0; s < steps; ++s) {
-      for (std::size_t i = 0; i < w.w.size(); ++i) {
-        w.v[2 * i] += dt * gx;
-        w.v[2 * i + 1] += dt * gy;
-      }
-      pinsim_state_mut sm{w.w.size(), w.t, w.x.data(), w.v.data(), w.w.data(), w.r.data()};
-      MutableState ms(sm);
-      EventSink es(&sink);
-      w.be->advance(ms, dt, es);
-      w.t += dt;
+    for (int s = 0; s < run_steps; ++s) {
+      w.step(dt, gx, gy, &sink);
       if (s % static_cast<int>(std::lround(0.25 / dt)) == 0)
         std::printf("t=%.2f x=(%.4f, %.4f) v=(%.3f, %.3f)\n", w.t, w.x[0], w.x[1], w.v[0], w.v[1]);
     }
@@ -154,11 +90,12 @@ int main(int argc, char** argv) {
                 (unsigned long long)st.cap_hits);
     return 0;
   }
-  std::printf("benchmark,variant,balls,repeats,median,unit,state_hash\n");
+  std::printf("benchmark,backend,variant,balls,steps,repeats,median,unit,state_hash\n");
 
   // 1. distance queries at random points and times on the table
   for (const long cells : {16384L, 65536L, 262144L, 0L}) {
-    World wq(scene, params_for(scene, {{"grid_cells", cells}}), {}, {}, radius);
+    BenchWorld<SdfBackend> wq(scene, params_for<SdfBackend>(sdf_params, {{"grid_cells", cells}}),
+                              {}, {}, radius);
     std::mt19937_64 rng(1);
     std::uniform_real_distribution<double> ux(0.0, 0.5), uy(-0.05, 1.0), ut(0.0, duration);
     const std::size_t n = 1 << 20;
@@ -193,72 +130,106 @@ int main(int argc, char** argv) {
       std::vector<double> runs;
       double sink = 0.0;
       for (int rep = 0; rep < 7; ++rep) {
-        const auto t0 = Clock::now();
+        const double t0 = cpu_ns();
         for (std::size_t i = 0; i < n; ++i) sink += wq.be->distance(pts[i], ts[i], nullptr);
-        runs.push_back(std::chrono::duration<double, std::nano>(Clock::now() - t0).count() / n);
+        runs.push_back((cpu_ns() - t0) / static_cast<double>(n));
       }
       uint64_t h = 0;
       std::memcpy(&h, &sink, sizeof h);
-      row("sdf_query",
+      row("sdf_query", "sdf",
           (cells ? "grid_cells=" + std::to_string(cells) : std::string("brute_force")) +
               (coherent ? "_coherent_paths" : "_random_points"),
-          0, 7, median(runs), "ns/query", h);
+          0, 0, 7, median(runs), "ns/query", h);
     }
   }
 
-  // 2. ns per ball-step: the scene's own ball (plunger launch, flippers) for the full run,
-  // and 100 / 10000 balls dropped at random into the playfield (no ball-ball contacts).
+  // 2. ns per ball-step on both backends, same scene, dt and gravity: the scene's own ball
+  // (plunger launch, flippers) for the full run, and 100 / 10,000 balls dropped at random
+  // into the playfield. Repeats alternate between the backends, so a change of machine
+  // load falls on both.
   struct Case {
+    const char* name;
+    std::size_t balls;
+    int steps;  ///< 0: the scene's whole run
+    int repeats;
+    bool pairs;  ///< ball-ball contacts on
+  };
+  struct Result {
+    std::string name;
     std::size_t balls;
     int steps;
-    int repeats;
-    bool pairs;
+    double sdf, box2d, one_query;
+    std::string note;
   };
-  for (const Case c : {Case{1, 0, 5, false}, Case{100, 3000, 5, false}, Case{10000, 60, 5, false},
-                       Case{100, 3000, 5, true}}) {
-    std::vector<double> runs;
-    uint64_t h = 0;
-    double skipped = 0.0;
-    for (int rep = 0; rep < c.repeats; ++rep) {
-      std::vector<double> x0, v0;
-      if (c.balls == 1) {
-        x0 = {scene["particles"][0]["x"][0], scene["particles"][0]["x"][1]};
-        v0 = {0.0, 0.0};
-      } else {
-        std::mt19937_64 rng(42);
-        std::uniform_real_distribution<double> ux(0.05, 0.40), uy(0.35, 0.95), uv(-1.0, 1.0);
-        for (std::size_t i = 0; i < c.balls; ++i) {
-          Vec2 p;
-          do p = Vec2(ux(rng), uy(rng));
-          while (false);
-          x0.push_back(p.x());
-          x0.push_back(p.y());
-          v0.push_back(uv(rng));
-          v0.push_back(uv(rng));
-        }
-      }
-      json contacts = c.pairs ? json{{"particles", true}, {"restitution", 0.9}} : json(nullptr);
-      World wb(scene, params_for(scene), x0, v0, radius, contacts);
-      // balls that start inside an obstacle are moved out of the way first (not timed)
+  std::vector<Result> results;
+  BenchWorld<SdfBackend> probe(scene, params_for<SdfBackend>(sdf_params), {}, {}, radius);
+  for (const Case c :
+       {Case{"scene_ball_full_run", 1, 0, 5, false}, Case{"random_drop", 100, 3000, 5, false},
+        Case{"random_drop", 10000, 60, 3, false},
+        Case{"random_drop_ball_contacts", 100, 3000, 5, true}}) {
+    std::vector<double> x0 = ball_x0, v0 = {0.0, 0.0};
+    if (c.balls > 1) {
+      x0.clear();
+      v0.clear();
+      std::mt19937_64 rng(42);
+      std::uniform_real_distribution<double> ux(0.05, 0.40), uy(0.35, 0.95), uv(-1.0, 1.0);
       for (std::size_t i = 0; i < c.balls; ++i) {
-        for (int k = 0; k < 100 && wb.be->distance(Vec2(wb.x[2 * i], wb.x[2 * i + 1]), 0.0,
-                                                   nullptr) < radius + 1e-3;
-             ++k)
-          wb.x[2 * i + 1] += 0.01;
+        // drawn again until clear of every obstacle (and inside the table)
+        double px = 0.0, py = 0.0;
+        do {
+          px = ux(rng);
+          py = uy(rng);
+        } while (probe.be->distance(Vec2(px, py), 0.0, nullptr) < radius + 1e-3);
+        x0.push_back(px);
+        x0.push_back(py);
+        v0.push_back(uv(rng));
+        v0.push_back(uv(rng));
       }
-      const int steps = c.steps ? c.steps : static_cast<int>(std::lround(duration / dt));
-      const auto t0 = Clock::now();
-      for (int s = 0; s < steps; ++s) wb.step(dt, gx, gy);
-      const double ns = std::chrono::duration<double, std::nano>(Clock::now() - t0).count();
-      runs.push_back(ns / (static_cast<double>(steps) * static_cast<double>(c.balls)));
-      h = wb.hash();
-      const auto& st = wb.be->stats();
-      skipped = static_cast<double>(st.skipped) / static_cast<double>(st.particle_steps);
     }
-    std::string variant = c.balls == 1 ? "scene_ball_full_run" : "random_drop";
-    if (c.pairs) variant += "_ball_contacts";
-    variant += "_skipped=" + std::to_string(skipped).substr(0, 5);
-    row("ball_step", variant, c.balls, c.repeats, median(runs), "ns/ball-step", h);
+    const json contacts = c.pairs ? json{{"particles", true}, {"restitution", 0.9}} : json(nullptr);
+    const int steps = c.steps ? c.steps : run_steps;
+    const double ball_steps = static_cast<double>(steps) * static_cast<double>(c.balls);
+    std::vector<double> sdf_runs, box2d_runs;
+    uint64_t sdf_hash = 0, box2d_hash = 0;
+    double one_query = 0.0;
+    std::string note;
+    for (int rep = 0; rep < c.repeats; ++rep) {
+      {
+        BenchWorld<SdfBackend> wb(scene, params_for<SdfBackend>(sdf_params), x0, v0, radius,
+                                  contacts);
+        const double t0 = cpu_ns();
+        for (int s = 0; s < steps; ++s) wb.step(dt, gx, gy);
+        sdf_runs.push_back((cpu_ns() - t0) / ball_steps);
+        sdf_hash = wb.hash();
+        const auto& st = wb.be->stats();
+        one_query = static_cast<double>(st.skipped) / static_cast<double>(st.particle_steps);
+      }
+      if (!note.empty()) continue;
+      try {
+        BenchWorld<Box2dBackend> wb(scene, params_for<Box2dBackend>(box2d_params), x0, v0, radius,
+                                    contacts);
+        const double t0 = cpu_ns();
+        for (int s = 0; s < steps; ++s) wb.step(dt, gx, gy);
+        box2d_runs.push_back((cpu_ns() - t0) / ball_steps);
+        box2d_hash = wb.hash();
+      } catch (const std::exception& e) {
+        note = std::string("box2d failed: ") + e.what();
+      }
+    }
+    row("ball_step", "sdf", c.name, c.balls, steps, c.repeats, median(sdf_runs), "ns/ball-step",
+        sdf_hash);
+    const double b2 = box2d_runs.empty() ? NAN : median(box2d_runs);
+    if (!box2d_runs.empty())
+      row("ball_step", "box2d", c.name, c.balls, steps, static_cast<int>(box2d_runs.size()), b2,
+          "ns/ball-step", box2d_hash);
+    results.push_back({c.name, c.balls, steps, median(sdf_runs), b2, one_query, note});
   }
+
+  std::printf(
+      "\ncase,balls,steps,sdf_ns_per_ball_step,box2d_ns_per_ball_step,"
+      "ratio_box2d_over_sdf,sdf_one_query_steps,note\n");
+  for (const Result& r : results)
+    std::printf("%s,%zu,%d,%.2f,%.2f,%.2f,%.3f,%s\n", r.name.c_str(), r.balls, r.steps, r.sdf,
+                r.box2d, r.box2d / r.sdf, r.one_query, r.note.c_str());
   return 0;
 }
