@@ -137,7 +137,8 @@ ObstacleField::ObstacleField(const nlohmann::json& scene_json, const std::string
 }
 
 void ObstacleField::build_grid(const std::vector<Vec2>& extra, long grid_cells) {
-  if (grid_cells <= 0 || static_.size() < 2) return;
+  // (a cell counts its candidates in 16 bits)
+  if (grid_cells <= 0 || static_.size() < 2 || obs_.size() > 65535) return;
   Aabb region;
   for (uint32_t k : static_) {
     const Aabb b = obs_[k].shape.boundary_bounds();
@@ -168,10 +169,16 @@ void ObstacleField::build_grid(const std::vector<Vec2>& extra, long grid_cells) 
   g_lo_ = region.lo;
   g_inv_ = 1.0 / cell;
   const double hd = 0.5 * cell * std::sqrt(2.0);
-  g_start_.assign(static_cast<std::size_t>(g_nx_) * g_ny_ + 1, 0);
-  g_mstart_.assign(static_cast<std::size_t>(g_nx_) * g_ny_ + 1, 0);
+  const std::size_t cells = static_cast<std::size_t>(g_nx_) * static_cast<std::size_t>(g_ny_);
+  g_cells_.assign(cells, Cell{});
   std::vector<double> f(static_.size());
   std::vector<std::pair<double, uint32_t>> order;
+  // a float bound never above the double one, so skipping by it is exact
+  auto round_down = [](double x) {
+    float y = static_cast<float>(x);
+    if (static_cast<double>(y) > x) y = std::nextafter(y, -HUGE_VALF);
+    return y;
+  };
   for (int iy = 0; iy < g_ny_; ++iy) {
     for (int ix = 0; ix < g_nx_; ++ix) {
       const Vec2 c = g_lo_ + Vec2((ix + 0.5) * cell, (iy + 0.5) * cell);
@@ -188,23 +195,24 @@ void ObstacleField::build_grid(const std::vector<Vec2>& extra, long grid_cells) 
       for (std::size_t q = 0; q < static_.size(); ++q)
         if (f[q] - hd <= lim) order.emplace_back(f[q] - hd, static_[q]);
       std::sort(order.begin(), order.end());
-      for (const auto& [lb, k] : order) {
-        g_list_.push_back(k);
-        g_lb_.push_back(lb);
-      }
+      Cell& cl = g_cells_[static_cast<std::size_t>(iy) * static_cast<std::size_t>(g_nx_) +
+                          static_cast<std::size_t>(ix)];
+      cl.first = static_cast<uint32_t>(g_cand_.size());
+      for (const auto& [lb, k] : order) g_cand_.push_back({round_down(lb), k});
+      cl.statics = static_cast<uint16_t>(order.size());
       // a moving obstacle whose lower bound over the cell exceeds ub is never nearest here
       for (uint32_t k : moving_)
-        if (lower_bound(k, c) - hd <= lim) g_mlist_.push_back(k);
-      const std::size_t cell_index = static_cast<std::size_t>(iy) * g_nx_ + ix + 1;
-      g_start_[cell_index] = static_cast<uint32_t>(g_list_.size());
-      g_mstart_[cell_index] = static_cast<uint32_t>(g_mlist_.size());
+        if (lower_bound(k, c) - hd <= lim) g_cand_.push_back({-HUGE_VALF, k});
+      cl.moving = static_cast<uint16_t>(g_cand_.size() - cl.first - cl.statics);
     }
   }
 }
 
 std::pair<std::size_t, double> ObstacleField::grid_stats() const {
   const std::size_t cells = static_cast<std::size_t>(g_nx_) * g_ny_;
-  return {cells, cells ? static_cast<double>(g_list_.size()) / static_cast<double>(cells) : 0.0};
+  std::size_t statics = 0;
+  for (const Cell& c : g_cells_) statics += c.statics;
+  return {cells, cells ? static_cast<double>(statics) / static_cast<double>(cells) : 0.0};
 }
 
 template <bool G>
@@ -227,38 +235,45 @@ Sdf ObstacleField::eval_at(const Obstacle& o, const Vec2& p, double t) const {
 
 Nearest ObstacleField::nearest(const Vec2& p, double t) const {
   Nearest best;
-  const uint32_t* first = static_.data();
-  const uint32_t* last = static_.data() + static_.size();
-  const uint32_t* mfirst = moving_.data();
-  const uint32_t* mlast = moving_.data() + moving_.size();
   if (g_nx_ > 0) {
     const double fx = (p.x() - g_lo_.x()) * g_inv_, fy = (p.y() - g_lo_.y()) * g_inv_;
     if (fx >= 0.0 && fy >= 0.0 && fx < g_nx_ && fy < g_ny_) {
-      const std::size_t c = static_cast<std::size_t>(fy) * g_nx_ + static_cast<std::size_t>(fx);
-      first = g_list_.data() + g_start_[c];
-      last = g_list_.data() + g_start_[c + 1];
-      mfirst = g_mlist_.data() + g_mstart_[c];
-      mlast = g_mlist_.data() + g_mstart_[c + 1];
+      const Cell cl = g_cells_[static_cast<std::size_t>(fy) * static_cast<std::size_t>(g_nx_) +
+                               static_cast<std::size_t>(fx)];
+      const Candidate* c = g_cand_.data() + cl.first;
+      for (const Candidate* e = c + cl.statics; c != e; ++c) {
+        if (static_cast<double>(c->lb) >= best.d) {
+          c = e;
+          break;
+        }
+        const double d = obs_[c->k].shape.eval<false>(p).d;
+        if (d < best.d) {
+          best.d = d;
+          best.k = static_cast<int32_t>(c->k);
+        }
+      }
+      for (const Candidate* e = c + cl.moving; c != e; ++c) nearest_moving(c->k, p, t, best);
+      return best;
     }
   }
-  const double* lb = first == static_.data() ? nullptr : g_lb_.data() + (first - g_list_.data());
-  for (const uint32_t* k = first; k != last; ++k) {
-    if (lb != nullptr && *lb++ >= best.d) break;
-    const double d = obs_[*k].shape.eval<false>(p).d;
+  for (uint32_t k : static_) {
+    const double d = obs_[k].shape.eval<false>(p).d;
     if (d < best.d) {
       best.d = d;
-      best.k = static_cast<int32_t>(*k);
+      best.k = static_cast<int32_t>(k);
     }
   }
-  for (const uint32_t* k = mfirst; k != mlast; ++k) {
-    if (lower_bound(*k, p) >= best.d) continue;
-    const double d = eval_at<false>(obs_[*k], p, t).d;
-    if (d < best.d) {
-      best.d = d;
-      best.k = static_cast<int32_t>(*k);
-    }
-  }
+  for (uint32_t k : moving_) nearest_moving(k, p, t, best);
   return best;
+}
+
+void ObstacleField::nearest_moving(uint32_t k, const Vec2& p, double t, Nearest& best) const {
+  if (lower_bound(k, p) >= best.d) return;
+  const double d = eval_at<false>(obs_[k], p, t).d;
+  if (d < best.d) {
+    best.d = d;
+    best.k = static_cast<int32_t>(k);
+  }
 }
 
 Sdf ObstacleField::eval(std::size_t k, const Vec2& p, double t) const {

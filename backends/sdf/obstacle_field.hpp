@@ -74,20 +74,31 @@ class ObstacleField {
   template <bool G>
   Sdf eval_at(const Obstacle& o, const Vec2& p, double t) const;
   void build_grid(const std::vector<Vec2>& extra, long grid_cells);
+  /// Lowers `best` to moving obstacle k's distance at (p, t) if that is smaller.
+  void nearest_moving(uint32_t k, const Vec2& p, double t, Nearest& best) const;
 
   std::vector<Obstacle> obs_;
   std::vector<uint32_t> static_;  ///< indices of static obstacles
   std::vector<uint32_t> moving_;  ///< indices of moving obstacles
   // Uniform grid over static obstacles: cell c lists the obstacles that can be nearest
   // somewhere in the cell (Lipschitz bound: |sdf(p) - sdf(centre)| <= half diagonal).
+  // A query touches one 8-byte cell and its candidates, stored contiguously: first the
+  // static ones in increasing order of their lower bound over the cell, then the moving
+  // ones that can be nearest there.
+  struct Cell {
+    uint32_t first = 0;    ///< index of the cell's first candidate in g_cand_
+    uint16_t statics = 0;  ///< static candidates
+    uint16_t moving = 0;   ///< moving candidates after them
+  };
+  struct Candidate {
+    float lb = 0.0f;  ///< lower bound of the obstacle's SDF over the cell, rounded down
+    uint32_t k = 0;   ///< obstacle index
+  };
   Vec2 g_lo_{0.0, 0.0};
   double g_inv_ = 0.0;
   int g_nx_ = 0, g_ny_ = 0;
-  std::vector<uint32_t> g_start_;  ///< nx*ny + 1 offsets into g_list_
-  std::vector<uint32_t> g_list_;
-  std::vector<double> g_lb_;        ///< per entry of g_list_: lower bound of its SDF over the cell
-  std::vector<uint32_t> g_mstart_;  ///< the same for moving obstacles that can be nearest
-  std::vector<uint32_t> g_mlist_;
+  std::vector<Cell> g_cells_;  ///< nx*ny, row by row
+  std::vector<Candidate> g_cand_;
 };
 
 }  // namespace pinsim::sdf

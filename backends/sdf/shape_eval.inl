@@ -42,11 +42,20 @@ inline Sdf ShapeTree::eval_primitive(const ShapeNode& n, const Vec2& p) const {
       const Vec2 q = rot_inv(n.ca, n.sa, p - n.c);
       const double wx = std::abs(q.x()) - n.b.x(), wy = std::abs(q.y()) - n.b.y();
       const double ox = std::max(wx, 0.0), oy = std::max(wy, 0.0);
-      const double outside = std::sqrt(ox * ox + oy * oy);
+      // Facing one side (ox or oy zero, the common case) sqrt(o^2) is o exactly and o s / o
+      // is s exactly, so the square root and the division are skipped without changing a
+      // bit; the bounds keep o^2 a normal number.
+      const bool face_y = ox == 0.0 && oy > 1e-150 && oy < 1e150;
+      const bool face_x = oy == 0.0 && ox > 1e-150 && ox < 1e150;
+      const double outside = face_y ? oy : face_x ? ox : std::sqrt(ox * ox + oy * oy);
       out.d = outside + std::min(std::max(wx, wy), 0.0) - n.r0;
       if constexpr (G) {
         Vec2 g;
-        if (outside > 0.0)
+        if (face_y)
+          g = Vec2(ox * sgn(q.x()), sgn(q.y()));
+        else if (face_x)
+          g = Vec2(sgn(q.x()), oy * sgn(q.y()));
+        else if (outside > 0.0)
           g = Vec2(ox * sgn(q.x()), oy * sgn(q.y())) / outside;
         else if (wx >= wy)
           g = Vec2(sgn(q.x()), 0.0);
