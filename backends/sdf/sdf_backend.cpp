@@ -90,7 +90,7 @@ double SdfBackend::distance(const Vec2& p, double t, int64_t* obstacle) const {
 // otherwise the particle moves on by at most max(d, depth_min), which cannot take it deeper
 // than depth_min inside the surface.
 bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
-                       EventSink& ev) {
+                       EventSink& ev, Probe* probe) {
   double remaining = dur;
   const auto& moving = field_.moving();
   bool first = true;
@@ -117,6 +117,14 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
       const double uk = speed_bound_[k];
       if (uk > 0.0 && field_.lower_bound(k, x) - r - delta_ <= (speed + uk) * remaining)
         u_max = std::max(u_max, uk);
+    }
+    if (probe) {
+      probe->reach = std::max(probe->reach, (x - probe->x0).squaredNorm());
+      probe->d_max = std::max(probe->d_max, nn.d);
+      probe->speed = std::max(probe->speed, speed);
+      if (u_max > 0.0 ||
+          field_.obstacle(static_cast<std::size_t>(nn.k)).motion != MotionType::kStatic)
+        probe->static_only = false;
     }
     const double lip = speed + u_max;
     if (!(lip > 0.0)) return true;  // nothing moves relative to anything
@@ -186,8 +194,11 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
         e.vn_after = (v - u).dot(n);
         ev.emit(e);
       }
-      if (dc < delta_) x += (delta_ - dc) * n;                  // back to the contact offset
-      if (u_max == 0.0 && v.squaredNorm() == 0.0) return true;  // at rest, nothing nearby moves
+      if (dc < delta_) x += (delta_ - dc) * n;       // back to the contact offset
+      if (u_max == 0.0 && v.squaredNorm() == 0.0) {  // at rest, nothing nearby moves
+        if (probe) probe->at_rest = resting && b.collisions == 1;
+        return true;
+      }
       continue;
     }
     const double step = std::max(dc, delta_) / lip;
@@ -302,27 +313,108 @@ void SdfBackend::schedule_pairs(const MutableState& s, double dt, EventSink& ev)
   }
 }
 
+namespace {
+
+SdfStats operator-(const SdfStats& a, const SdfStats& b) {
+  return {a.particle_steps - b.particle_steps,
+          a.skipped - b.skipped,
+          a.queries - b.queries,
+          a.contacts - b.contacts,
+          a.pair_contacts - b.pair_contacts,
+          a.cap_hits - b.cap_hits,
+          a.replays - b.replays};
+}
+void add(SdfStats& a, const SdfStats& b) {
+  a.particle_steps += b.particle_steps;
+  a.skipped += b.skipped;
+  a.queries += b.queries;
+  a.contacts += b.contacts;
+  a.pair_contacts += b.pair_contacts;
+  a.cap_hits += b.cap_hits;
+  a.replays += b.replays;
+}
+bool same(const Vec2& a, const Vec2& b) { return a.x() == b.x() && a.y() == b.y(); }
+
+}  // namespace
+
+// A replayed step must compute exactly what the march would. The march's result depends on
+// time only through moving obstacles: their distance in nearest() and their speed in the
+// Lipschitz bound. For every moving obstacle k, lower_bound(k, .) is 1-Lipschitz and time
+// independent, so at every point the recorded step queried (within `reach` of x_in)
+//   lower_bound(k, x_in) - reach - depth_min >= d_max   => nearest() skips k there, and
+//   ... - r - depth_min > (speed + U_k) dt                => k adds nothing to the bound
+// (depth_min is a margin against rounding, far above it).
+bool SdfBackend::far_from_moving(const Rest& m) const {
+  for (uint32_t k : field_.moving()) {
+    const double lb = field_.lower_bound(k, m.x_in) - m.reach - delta_;
+    if (!(lb > 0.0 && lb >= m.d_max)) return false;
+    const double uk = speed_bound_[k];
+    if (uk > 0.0 && !(lb - m.r - delta_ > (m.speed + uk) * m.dt)) return false;
+  }
+  return true;
+}
+
 void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   if (!(dt > 0.0)) return;
   const double t0 = s.t;
   for (uint32_t k : field_.moving()) speed_bound_[k] = field_.speed_bound(k, t0, t0 + dt);
   const bool pairs = particle_contacts_ && s.n > 1;
   if (pairs) schedule_pairs(s, dt, ev);
+  if (rest_valid_.size() != s.n) {
+    rest_valid_.assign(s.n, 0);
+    rest_next_.assign(s.n, 0);
+    rest_.resize(s.n * kRestSlots);
+  }
   for (std::size_t i = 0; i < s.n; ++i) {
     if (!(s.inv_mass[i] > 0.0)) continue;  // pinned particles do not move
-    ++stats_.particle_steps;
     Vec2 x = s.x.col(i), v = s.v.col(i);
     const double r = s.radius[i];
-    Budget b;
-    double done = 0.0;
     if (pairs) {
+      ++stats_.particle_steps;
+      Budget b;
+      double done = 0.0;
       for (const Change& c : changes_[i]) {
         march(i, x, v, r, t0 + done, c.tau - done, b, ev);
         v += c.dv;
         done = c.tau;
       }
+      march(i, x, v, r, t0 + done, dt - done, b, ev);
+    } else {
+      const Rest* hit = nullptr;
+      for (std::size_t j = 0; j < kRestSlots && rest_valid_[i] >> j; ++j) {
+        const Rest& m = rest_[i * kRestSlots + j];
+        if ((rest_valid_[i] >> j & 1) && same(x, m.x_in) && same(v, m.v_in) && r == m.r &&
+            dt == m.dt) {
+          hit = &m;
+          break;
+        }
+      }
+      if (hit != nullptr && far_from_moving(*hit)) {
+        // at rest on static obstacles, with an input seen before: the same output
+        add(stats_, hit->delta);
+        ++stats_.replays;
+        s.x.col(i) = hit->x_out;
+        s.v.col(i) = hit->v_out;
+        continue;
+      }
+      const SdfStats before = stats_;
+      ++stats_.particle_steps;
+      Probe probe;
+      probe.x0 = x;
+      Budget b;
+      march(i, x, v, r, t0, dt, b, ev, &probe);
+      if (probe.at_rest && probe.static_only) {
+        const std::size_t j =
+            hit != nullptr ? static_cast<std::size_t>(hit - &rest_[i * kRestSlots]) : rest_next_[i];
+        if (hit == nullptr) rest_next_[i] = static_cast<uint8_t>((j + 1) % kRestSlots);
+        rest_[i * kRestSlots + j] = {
+            s.x.col(i),  s.v.col(i),     x, v, r, dt, std::sqrt(probe.reach), probe.d_max,
+            probe.speed, stats_ - before};
+        rest_valid_[i] = static_cast<uint8_t>(rest_valid_[i] | 1u << j);
+      } else {
+        rest_valid_[i] = 0;
+      }
     }
-    march(i, x, v, r, t0 + done, dt - done, b, ev);
     s.x.col(i) = x;
     s.v.col(i) = v;
   }

@@ -19,6 +19,7 @@ struct SdfStats {
   uint64_t contacts = 0;        ///< obstacle impulses (including resting contacts)
   uint64_t pair_contacts = 0;   ///< particle-particle impulses
   uint64_t cap_hits = 0;        ///< steps that hit max_collisions or max_iterations
+  uint64_t replays = 0;  ///< particle steps at rest repeated from the previous result (README)
 };
 
 class SdfBackend {
@@ -46,9 +47,29 @@ class SdfBackend {
     double tau;  ///< time into the step, s
     Vec2 dv;     ///< velocity change
   };
+  /// What a march looked at, to decide whether its result can be replayed (see README).
+  struct Probe {
+    Vec2 x0{0.0, 0.0};        ///< start point
+    double reach = 0.0;       ///< farthest query point from x0
+    double d_max = 0.0;       ///< largest nearest distance returned
+    double speed = 0.0;       ///< largest speed at a query
+    bool static_only = true;  ///< every query's nearest obstacle static, no moving one near
+    bool at_rest = false;     ///< ended at rest after one resting contact, no event
+  };
+  /// A particle step that ended at rest on static obstacles: the same input gives the
+  /// same output as long as no moving obstacle can come near.
+  struct Rest {
+    Vec2 x_in, v_in, x_out, v_out;
+    double r = 0.0, dt = 0.0;
+    double reach = 0.0, d_max = 0.0, speed = 0.0;
+    SdfStats delta;  ///< counters the step added
+  };
   /// Moves particle i from (x, v) at time t over `dur`; false if the caps stopped it early.
   bool march(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
-             EventSink& ev);
+             EventSink& ev, Probe* probe = nullptr);
+  /// True if no moving obstacle can reach the points a Rest record's step queried, in the
+  /// step now being taken, so the record can be replayed.
+  bool far_from_moving(const Rest& m) const;
   /// Particle-particle contacts within the step: fills changes_ (see README).
   void schedule_pairs(const MutableState& s, double dt, EventSink& ev);
 
@@ -62,6 +83,12 @@ class SdfBackend {
   double particle_e_ = 1.0;
   std::vector<double> speed_bound_;  ///< per obstacle, this step
   std::vector<std::vector<Change>> changes_;
+  /// Rest records per particle: a resting ball's position may cycle through a few values
+  /// (rounding of the push back to the contact offset), so a few are kept.
+  static constexpr std::size_t kRestSlots = 4;
+  std::vector<Rest> rest_;           ///< kRestSlots per particle
+  std::vector<uint8_t> rest_valid_;  ///< per particle: bit j set if slot j holds a record
+  std::vector<uint8_t> rest_next_;   ///< per particle: the slot to fill next
   SdfStats stats_;
 };
 
