@@ -233,8 +233,29 @@ Sdf ObstacleField::eval_at(const Obstacle& o, const Vec2& p, double t) const {
   return {};
 }
 
-Nearest ObstacleField::nearest(const Vec2& p, double t) const {
+Nearest ObstacleField::nearest(const Vec2& p, double t) const { return nearest_impl<false>(p, t); }
+
+Nearest ObstacleField::nearest_with_gradient(const Vec2& p, double t) const {
+  return nearest_impl<true>(p, t);
+}
+
+// With G the candidates are evaluated with their gradients; the distances are the same
+// bits either way (the gradient only adds to the evaluation), and so is the gradient
+// kept: eval(k, p, t).g of the nearest.
+template <bool G>
+Nearest ObstacleField::nearest_impl(const Vec2& p, double t) const {
   Nearest best;
+  auto offer = [&](uint32_t k, const Sdf& s) {
+    if (s.d < best.d) {
+      best.d = s.d;
+      best.k = static_cast<int32_t>(k);
+      if constexpr (G) best.g = s.g;
+    }
+  };
+  auto offer_moving = [&](uint32_t k) {
+    if (lower_bound(k, p) >= best.d) return;
+    offer(k, eval_at<G>(obs_[k], p, t));
+  };
   if (g_nx_ > 0) {
     const double fx = (p.x() - g_lo_.x()) * g_inv_, fy = (p.y() - g_lo_.y()) * g_inv_;
     if (fx >= 0.0 && fy >= 0.0 && fx < g_nx_ && fy < g_ny_) {
@@ -246,34 +267,15 @@ Nearest ObstacleField::nearest(const Vec2& p, double t) const {
           c = e;
           break;
         }
-        const double d = obs_[c->k].shape.eval<false>(p).d;
-        if (d < best.d) {
-          best.d = d;
-          best.k = static_cast<int32_t>(c->k);
-        }
+        offer(c->k, obs_[c->k].shape.eval<G>(p));
       }
-      for (const Candidate* e = c + cl.moving; c != e; ++c) nearest_moving(c->k, p, t, best);
+      for (const Candidate* e = c + cl.moving; c != e; ++c) offer_moving(c->k);
       return best;
     }
   }
-  for (uint32_t k : static_) {
-    const double d = obs_[k].shape.eval<false>(p).d;
-    if (d < best.d) {
-      best.d = d;
-      best.k = static_cast<int32_t>(k);
-    }
-  }
-  for (uint32_t k : moving_) nearest_moving(k, p, t, best);
+  for (uint32_t k : static_) offer(k, obs_[k].shape.eval<G>(p));
+  for (uint32_t k : moving_) offer_moving(k);
   return best;
-}
-
-void ObstacleField::nearest_moving(uint32_t k, const Vec2& p, double t, Nearest& best) const {
-  if (lower_bound(k, p) >= best.d) return;
-  const double d = eval_at<false>(obs_[k], p, t).d;
-  if (d < best.d) {
-    best.d = d;
-    best.k = static_cast<int32_t>(k);
-  }
 }
 
 Sdf ObstacleField::eval(std::size_t k, const Vec2& p, double t) const {

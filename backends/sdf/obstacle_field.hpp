@@ -38,6 +38,7 @@ struct Obstacle {
 struct Nearest {
   double d = HUGE_VAL;  ///< signed distance to the nearest obstacle
   int32_t k = -1;       ///< its index, -1 if there are none
+  Vec2 g{0.0, 1.0};     ///< its gradient there (only from nearest_with_gradient)
 };
 
 class ObstacleField {
@@ -55,6 +56,8 @@ class ObstacleField {
 
   /// Smallest signed distance over all obstacles at point p and time t, and which one.
   Nearest nearest(const Vec2& p, double t) const;
+  /// The same, with the nearest obstacle's gradient (as eval(k, p, t).g) in Nearest::g.
+  Nearest nearest_with_gradient(const Vec2& p, double t) const;
   /// Signed distance and world gradient of obstacle k at (p, t).
   Sdf eval(std::size_t k, const Vec2& p, double t) const;
   /// Velocity of obstacle k's material point at p, time t.
@@ -74,8 +77,8 @@ class ObstacleField {
   template <bool G>
   Sdf eval_at(const Obstacle& o, const Vec2& p, double t) const;
   void build_grid(const std::vector<Vec2>& extra, long grid_cells);
-  /// Lowers `best` to moving obstacle k's distance at (p, t) if that is smaller.
-  void nearest_moving(uint32_t k, const Vec2& p, double t, Nearest& best) const;
+  template <bool G>
+  Nearest nearest_impl(const Vec2& p, double t) const;
 
   std::vector<Obstacle> obs_;
   std::vector<uint32_t> static_;  ///< indices of static obstacles

@@ -94,6 +94,7 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
   double remaining = dur;
   const auto& moving = field_.moving();
   bool first = true;
+  bool in_band = false;  ///< the last query was in the contact band
   while (remaining > 0.0) {
     if (b.iterations >= max_iterations_ || b.collisions >= max_collisions_) {
       // Fallback: for the rest of the step the particle rides rigidly with the nearest
@@ -105,7 +106,9 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
     }
     ++b.iterations;
     ++stats_.queries;
-    const Nearest nn = field_.nearest(x, t);
+    // after a query in the contact band the next is likely there too: take the gradient
+    // with the query rather than evaluating the nearest obstacle again
+    const Nearest nn = in_band ? field_.nearest_with_gradient(x, t) : field_.nearest(x, t);
     if (nn.k < 0) {
       x += v * remaining;
       return true;
@@ -129,6 +132,7 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
     const double lip = speed + u_max;
     if (!(lip > 0.0)) return true;  // nothing moves relative to anything
     if (d > delta_ + tol_) {
+      in_band = false;
       const double step = (d - delta_) / lip;
       if (step >= remaining) {
         if (first) ++stats_.skipped;
@@ -143,7 +147,8 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
     }
     first = false;
     const auto k = static_cast<std::size_t>(nn.k);
-    Sdf sd = field_.eval(k, x, t);
+    Sdf sd = in_band ? Sdf{nn.d, nn.g} : field_.eval(k, x, t);
+    in_band = true;
     Vec2 n = sd.g;
     Vec2 pc = x - sd.d * n;
     Vec2 u = field_.velocity(k, pc, t);
