@@ -46,6 +46,10 @@ struct Case {
   std::string stiffness_path;  ///< stiffness: the override path of the stiffness
   double blowup = 1.0;         ///< energy growth that counts as a blow-up (x energy scale)
   double pen_tol = 0.0;        ///< penetration deeper than this is a failure, length
+  /// A free particle farther than this from where it started has diverged (length; 0: off).
+  /// For bounded potentials (bending: |E| <= k/2) an unstable step makes the strand tumble
+  /// rather than blow its energy up, so the energy test alone cannot see the instability.
+  double displacement_limit = 0.0;
 };
 
 struct Point {
@@ -109,12 +113,20 @@ Outcome run_point(const Case& c, const Point& p, PluginLoader& loader) {
   Simulation sim(scene, loader);
   const bool dist = sim.backend().has_distance();
   const uint64_t N = scene.steps();
+  const Eigen::Matrix2Xd x0 = sim.state().x;
   const auto t0 = std::chrono::steady_clock::now();
   try {
-    for (uint64_t n = 1; n <= N; ++n) {
+    for (uint64_t n = 1; n <= N && o.cls != "diverged"; ++n) {
       sim.step();
       sim.events().clear();
       const State& s = sim.state();
+      if (c.displacement_limit > 0.0)
+        for (Eigen::Index i = 0; i < s.x.cols() && o.cls != "diverged"; ++i)
+          if (s.inv_mass[i] > 0.0 && !((s.x.col(i) - x0.col(i)).norm() <= c.displacement_limit)) {
+            o.cls = "diverged";
+            o.bad_step = static_cast<long long>(n);
+            o.particle = i;
+          }
       if (dist) {
         for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
           if (!(s.inv_mass[i] > 0.0)) continue;
@@ -150,7 +162,7 @@ int class_code(const std::string& c) {
   if (c == "stable") return 0;
   if (c == "penetration") return 1;
   if (c == "tunnelled") return 2;
-  if (c == "energy_blowup") return 3;
+  if (c == "energy_blowup" || c == "diverged") return 3;
   if (c == "nan") return 4;
   return 5;
 }
@@ -190,6 +202,7 @@ int run(const Options& o) {
     c.kind = cj.value("kind", std::string("run"));
     c.blowup = cj.value("energy_blowup", d.value("energy_blowup", 1.0));
     c.pen_tol = cj.value("penetration_tolerance", d.value("penetration_tolerance", 1e-3));
+    c.displacement_limit = cj.value("displacement_limit", 0.0);
     if (c.kind != "tunnelling") {
       if (!cj.contains("scene")) throw SceneError(cw + ".scene: required");
       c.doc = sweep::scene_doc(cfg, cj["scene"], c.base);
@@ -345,10 +358,11 @@ void report(const sweep::Table& t, const fs::path& out) {
     gp << "set terminal svg size 800,600 dynamic\nset output 'heat_" << name << ".svg'\n"
        << "set logscale xy\nset xlabel '" << (stiff ? "dt (s)" : "ball speed (units/s)")
        << "'\nset ylabel '" << (stiff ? "stiffness" : "wall thickness") << "'\nset title '" << name
-       << "' noenhanced\nset cbrange [0:5]\n"
+       << "' noenhanced\nset cbrange "
+          "[0:5]\n"
        << "set palette defined (0 '#1a9850', 1 '#fee08b', 2 '#fdae61', 3 '#d73027', 4 "
           "'#67001f', 5 '#404040')\n"
-       << "set cbtics ('stable' 0, 'penetration' 1, 'tunnelled' 2, 'blow-up' 3, 'NaN' 4, "
+       << "set cbtics ('stable' 0, 'penetration' 1, 'tunnelled' 2, 'unstable' 3, 'NaN' 4, "
           "'error' 5)\n"
        << "plot 'heat_" << name << ".dat' using 1:2:3 with points pt 5 ps 3 palette notitle\n";
     gp.close();
