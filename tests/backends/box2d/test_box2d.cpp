@@ -144,6 +144,15 @@ TEST_CASE("the pinball table's agreement horizon is reported") {
   CHECK(rep.table.find("horizon") != std::string::npos);
 }
 
+TEST_CASE("the shipped pinball scene's own crosscheck settings pass") {
+  // configs/pinball.json asks for 1 mm agreement over 0.5 s, normals within 0.02 rad
+  // (Box2D's 256-segment wall top is within pi/256 of the true normal).
+  const auto rep = crosscheck_file(PINSIM_CONFIG_DIR "/pinball.json");
+  INFO(rep.table);
+  CHECK(rep.pass);
+  CHECK(rep.json["particles"][0]["agreement_horizon"].get<double>() >= 0.5);
+}
+
 TEST_CASE("features Box2D cannot express are errors naming the obstacle and feature") {
   const std::string ball = R"({"x": [0, 0], "v": [1, 0], "mass": 1, "radius": 0.05})";
   SECTION("arc") {
