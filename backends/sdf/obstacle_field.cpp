@@ -311,6 +311,19 @@ double ObstacleField::speed_bound(std::size_t k, double t0, double t1) const {
   return 0.0;
 }
 
+double ObstacleField::speed_bound(std::size_t k, double t0, double t1, std::size_t& hint) const {
+  const Obstacle& o = obs_[k];
+  switch (o.motion) {
+    case MotionType::kStatic:
+      return 0.0;
+    case MotionType::kFlipper:
+      return o.timeline->max_rate(t0, t1, hint) * o.reach;
+    case MotionType::kSlider:
+      return o.timeline->max_rate(t0, t1, hint) * o.offset.norm();
+  }
+  return 0.0;
+}
+
 Vec2 ObstacleField::carry(std::size_t k, const Vec2& p, double t0, double t1) const {
   const Obstacle& o = obs_[k];
   switch (o.motion) {

@@ -71,6 +71,7 @@ SdfBackend::SdfBackend(const CreateContext& ctx) {
         "restitution", 1.0, [](double x) { return x >= 0.0 && x <= 1.0; }, "must be in [0, 1]");
   }
   speed_bound_.assign(field_.size(), 0.0);
+  timeline_hint_.assign(field_.size(), 0);
 }
 
 double SdfBackend::distance(const Vec2& p, double t, int64_t* obstacle) const {
@@ -362,7 +363,8 @@ bool SdfBackend::far_from_moving(const Rest& m) const {
 void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   if (!(dt > 0.0)) return;
   const double t0 = s.t;
-  for (uint32_t k : field_.moving()) speed_bound_[k] = field_.speed_bound(k, t0, t0 + dt);
+  for (uint32_t k : field_.moving())
+    speed_bound_[k] = field_.speed_bound(k, t0, t0 + dt, timeline_hint_[k]);
   const bool pairs = particle_contacts_ && s.n > 1;
   if (pairs) schedule_pairs(s, dt, ev);
   if (rest_valid_.size() != s.n) {

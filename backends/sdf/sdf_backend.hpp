@@ -81,7 +81,8 @@ class SdfBackend {
   double rest_speed_ = 0.0;
   bool particle_contacts_ = false;
   double particle_e_ = 1.0;
-  std::vector<double> speed_bound_;  ///< per obstacle, this step
+  std::vector<double> speed_bound_;         ///< per obstacle, this step
+  std::vector<std::size_t> timeline_hint_;  ///< per obstacle: its timeline's segment last step
   std::vector<std::vector<Change>> changes_;
   /// Rest records per particle: a resting ball's position may cycle through a few values
   /// (rounding of the push back to the contact offset), so a few are kept.

@@ -52,6 +52,16 @@ class Timeline {
       m = std::max(m, std::abs(seg_[k].slope));
     return m;
   }
+  /// The same, starting the search at segment `hint` (updated), for times that advance.
+  double max_rate(double t0, double t1, std::size_t& hint) const {
+    if (!(hint < seg_.size() && seg_[hint].t <= t0 &&
+          (hint + 1 == seg_.size() || t0 < seg_[hint + 1].t)))
+      hint = index(t0);
+    double m = 0.0;
+    for (std::size_t k = hint; k < seg_.size() && seg_[k].t <= t1; ++k)
+      m = std::max(m, std::abs(seg_[k].slope));
+    return m;
+  }
   /// True if the value never changes.
   bool constant() const { return seg_.size() == 1; }
 
