@@ -23,23 +23,6 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 
-std::vector<double> numbers(const json& j, const std::string& where) {
-  if (!j.is_array() || j.empty())
-    throw SceneError(where + ": expected a non-empty list of numbers");
-  std::vector<double> out;
-  for (const auto& x : j) {
-    if (!x.is_number() || !(x.get<double>() > 0.0))
-      throw SceneError(where + ": expected positive numbers, got " + x.dump());
-    out.push_back(x.get<double>());
-  }
-  return out;
-}
-
-std::vector<json> list_or(const json& a, const json& b, const char* key, const json& def) {
-  const json& l = a.contains(key) ? a[key] : b.contains(key) ? b[key] : def;
-  return std::vector<json>(l.begin(), l.end());
-}
-
 /// One point of the sweep.
 struct Point {
   std::size_t index;
@@ -207,9 +190,10 @@ int run(const Options& o) {
     c.reference = cj.value("reference", json());
     if (c.answer.is_null() == c.reference.is_null())
       throw SceneError(cw + ": give exactly one of \"answer\" (closed form) or \"reference\"");
-    const auto dts = numbers(cj.contains("dt") ? cj["dt"] : d.value("dt", json()), cw + ".dt");
-    const auto integs = list_or(cj, d, "integrators", json::array({"symplectic_euler"}));
-    const auto backends = list_or(cj, d, "backends", json::array({json()}));
+    const auto dts =
+        sweep::numbers(cj.contains("dt") ? cj["dt"] : d.value("dt", json()), cw + ".dt");
+    const auto integs = sweep::list_or(cj, d, "integrators", json::array({"symplectic_euler"}));
+    const auto backends = sweep::list_or(cj, d, "backends", json::array({json()}));
     for (const auto& b : backends)
       for (const auto& in : integs)
         for (double dt : dts) {

@@ -23,22 +23,6 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::vector<double> numbers(const json& j, const std::string& where) {
-  if (!j.is_array() || j.empty()) throw SceneError(where + ": expected a non-empty list");
-  std::vector<double> out;
-  for (const auto& x : j) {
-    if (!x.is_number() || !(x.get<double>() > 0.0))
-      throw SceneError(where + ": expected positive numbers, got " + x.dump());
-    out.push_back(x.get<double>());
-  }
-  return out;
-}
-
-std::vector<json> list_or(const json& a, const json& b, const char* key, const json& def) {
-  const json& l = a.contains(key) ? a[key] : b.contains(key) ? b[key] : def;
-  return std::vector<json>(l.begin(), l.end());
-}
-
 struct Case {
   std::string name, kind;  ///< kind: stiffness | tunnelling | run
   json doc;
@@ -209,18 +193,19 @@ int run(const Options& o) {
     } else {
       c.base = cfg.dir;
     }
-    const auto dts = numbers(cj.contains("dt") ? cj["dt"] : d.value("dt", json()), cw + ".dt");
-    const auto integs = list_or(cj, d, "integrators", json::array({"symplectic_euler"}));
-    const auto backends = list_or(cj, d, "backends", json::array({json()}));
+    const auto dts =
+        sweep::numbers(cj.contains("dt") ? cj["dt"] : d.value("dt", json()), cw + ".dt");
+    const auto integs = sweep::list_or(cj, d, "integrators", json::array({"symplectic_euler"}));
+    const auto backends = sweep::list_or(cj, d, "backends", json::array({json()}));
     std::vector<double> ks = {kNaN}, speeds = {kNaN}, thick = {kNaN};
     if (c.kind == "stiffness") {
       if (!cj.contains("stiffness") || !cj["stiffness"].is_object())
         throw SceneError(cw + ".stiffness: expected {\"path\": ..., \"values\": [...]}");
       c.stiffness_path = cj["stiffness"].value("path", std::string());
-      ks = numbers(cj["stiffness"].value("values", json()), cw + ".stiffness.values");
+      ks = sweep::numbers(cj["stiffness"].value("values", json()), cw + ".stiffness.values");
     } else if (c.kind == "tunnelling") {
-      speeds = numbers(cj.value("speeds", json()), cw + ".speeds");
-      thick = numbers(cj.value("thickness", json()), cw + ".thickness");
+      speeds = sweep::numbers(cj.value("speeds", json()), cw + ".speeds");
+      thick = sweep::numbers(cj.value("thickness", json()), cw + ".thickness");
     } else if (c.kind != "run") {
       throw SceneError(cw + ".kind: expected stiffness, tunnelling or run");
     }

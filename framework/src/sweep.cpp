@@ -167,6 +167,24 @@ bool run_gnuplot(const fs::path& script) {
   return true;
 }
 
+std::vector<double> numbers(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_array() || j.empty())
+    throw SceneError(where + ": expected a non-empty list of numbers");
+  std::vector<double> out;
+  for (const auto& x : j) {
+    if (!x.is_number() || !(x.get<double>() > 0.0))
+      throw SceneError(where + ": expected positive numbers, got " + x.dump());
+    out.push_back(x.get<double>());
+  }
+  return out;
+}
+
+std::vector<nlohmann::json> list_or(const nlohmann::json& a, const nlohmann::json& b,
+                                    const char* key, const nlohmann::json& def) {
+  const nlohmann::json& l = a.contains(key) ? a[key] : b.contains(key) ? b[key] : def;
+  return std::vector<nlohmann::json>(l.begin(), l.end());
+}
+
 std::string num(double x) {
   if (std::isnan(x)) return "nan";
   if (std::isinf(x)) return x > 0 ? "inf" : "-inf";

@@ -65,6 +65,14 @@ double loglog_slope(const std::vector<double>& x, const std::vector<double>& y);
 /// skipped (install Debian's gnuplot-nox) and returns false. Never throws.
 bool run_gnuplot(const std::filesystem::path& script);
 
+/// A config's non-empty list of positive numbers (dt values, stiffnesses, speeds); throws
+/// SceneError naming `where` otherwise.
+std::vector<double> numbers(const nlohmann::json& j, const std::string& where);
+
+/// The list `key` from a case (`a`), else from the config's top level (`b`), else `def`.
+std::vector<nlohmann::json> list_or(const nlohmann::json& a, const nlohmann::json& b,
+                                    const char* key, const nlohmann::json& def);
+
 /// Shortest round-trip text for a double ("nan", "inf" for those).
 std::string num(double x);
 
