@@ -12,22 +12,7 @@ using Catch::Matchers::Contains;
 
 namespace {
 
-struct Result {
-  int code;
-  std::string output;  // stdout and stderr together
-};
-
-Result pinsim_cli(const std::string& args) {
-  const std::string cmd = std::string(PINSIM_BIN) + " " + args + " 2>&1";
-  Result r{-1, {}};
-  std::FILE* p = ::popen(cmd.c_str(), "r");
-  REQUIRE(p != nullptr);
-  char buf[4096];
-  while (std::size_t n = std::fread(buf, 1, sizeof buf, p)) r.output.append(buf, n);
-  const int status = ::pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using test::pinsim_cli;
 
 const std::string configs = PINSIM_SOURCE_DIR "/configs";
 

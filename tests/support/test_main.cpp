@@ -8,11 +8,14 @@ int main(int argc, char** argv) {
   return Catch::Session().run(argc, argv);
 }
 
+#include <sys/wait.h>
 #include <unistd.h>
 
 #include <atomic>
+#include <cstdio>
 #include <fstream>
 #include <sstream>
+#include <stdexcept>
 
 #include "test_support.hpp"
 
@@ -37,6 +40,21 @@ std::string read_file(const std::filesystem::path& p) {
   std::stringstream ss;
   ss << in.rdbuf();
   return ss.str();
+}
+
+CommandResult shell(const std::string& command) {
+  CommandResult r{-1, {}};
+  std::FILE* p = ::popen((command + " 2>&1").c_str(), "r");
+  if (p == nullptr) throw std::runtime_error("popen failed: " + command);
+  char buf[4096];
+  while (std::size_t n = std::fread(buf, 1, sizeof buf, p)) r.output.append(buf, n);
+  const int status = ::pclose(p);
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+CommandResult pinsim_cli(const std::string& args) {
+  return shell(std::string(PINSIM_BIN) + " " + args);
 }
 
 }  // namespace pinsim::test

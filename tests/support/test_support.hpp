@@ -33,4 +33,16 @@ void write_file(const std::filesystem::path& p, const std::string& text);
 /// Reads a whole file.
 std::string read_file(const std::filesystem::path& p);
 
+/// A command's exit status (-1 if it did not exit normally) and its stdout and stderr.
+struct CommandResult {
+  int code;
+  std::string output;
+};
+
+/// Runs a shell command line, capturing stdout and stderr together.
+CommandResult shell(const std::string& command);
+
+/// Runs the pinsim program of this build with these arguments (shell syntax).
+CommandResult pinsim_cli(const std::string& args);
+
 }  // namespace pinsim::test

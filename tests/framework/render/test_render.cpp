@@ -21,23 +21,8 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Result {
-  int code;
-  std::string output;
-};
-
-Result shell(const std::string& cmd) {
-  Result r{-1, {}};
-  std::FILE* p = ::popen((cmd + " 2>&1").c_str(), "r");
-  REQUIRE(p != nullptr);
-  char buf[4096];
-  while (std::size_t n = std::fread(buf, 1, sizeof buf, p)) r.output.append(buf, n);
-  const int status = ::pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
-
-Result pinsim_cli(const std::string& args) { return shell(std::string(PINSIM_BIN) + " " + args); }
+using test::pinsim_cli;
+using test::shell;
 
 const std::string kScene = PINSIM_TEST_SOURCE_DIR "/framework/render/box_ball.json";
 // The test scene's unit box, 400 pixels across: pixel = (400 x, 400 (1 - y)).

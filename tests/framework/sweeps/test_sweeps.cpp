@@ -20,21 +20,7 @@ namespace fs = std::filesystem;
 
 namespace {
 
-struct Result {
-  int code;
-  std::string output;
-};
-
-Result pinsim_cli(const std::string& args) {
-  Result r{-1, {}};
-  std::FILE* p = ::popen((std::string(PINSIM_BIN) + " " + args + " 2>&1").c_str(), "r");
-  REQUIRE(p != nullptr);
-  char buf[4096];
-  while (std::size_t n = std::fread(buf, 1, sizeof buf, p)) r.output.append(buf, n);
-  const int status = ::pclose(p);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
-}
+using pinsim::test::pinsim_cli;
 
 /// A CSV as rows of named fields.
 using Row = std::map<std::string, std::string>;
