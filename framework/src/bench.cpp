@@ -13,6 +13,7 @@
 #include <optional>
 
 #include "bench_answer.hpp"
+#include "json_read.hpp"
 #include "simulation.hpp"
 
 namespace fs = std::filesystem;
@@ -175,6 +176,8 @@ int run(const Options& o) {
   const std::string where = cfg.file.string();
   if (!d.contains("cases") || !d["cases"].is_array())
     throw SceneError(where + ".cases: expected a list of cases");
+  check_keys(d, {"$schema", "description", "cases", "integrators", "backends", "dt", "repeats"},
+             {where, ""});
   const int repeats = o.repeats >= 0 ? o.repeats : d.value("repeats", 3);
 
   std::vector<Case> cases;
@@ -182,6 +185,8 @@ int run(const Options& o) {
   for (std::size_t ci = 0; ci < d["cases"].size(); ++ci) {
     const json& cj = d["cases"][ci];
     const std::string cw = where + ": cases[" + std::to_string(ci) + "]";
+    check_keys(cj, {"name", "scene", "answer", "reference", "dt", "integrators", "backends"},
+               Loc{where, "cases"}[ci]);
     Case c;
     c.name = cj.value("name", "case" + std::to_string(ci));
     if (!cj.contains("scene")) throw SceneError(cw + ".scene: required");

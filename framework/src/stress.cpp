@@ -13,6 +13,7 @@
 #include <map>
 #include <set>
 
+#include "json_read.hpp"
 #include "simulation.hpp"
 
 namespace fs = std::filesystem;
@@ -176,11 +177,19 @@ int run(const Options& o) {
   const std::string where = cfg.file.string();
   if (!d.contains("cases") || !d["cases"].is_array())
     throw SceneError(where + ".cases: expected a list of cases");
+  check_keys(d,
+             {"$schema", "description", "cases", "integrators", "backends", "dt", "energy_blowup",
+              "penetration_tolerance"},
+             {where, ""});
   std::vector<Case> cases;
   std::vector<Point> points;
   for (std::size_t ci = 0; ci < d["cases"].size(); ++ci) {
     const json& cj = d["cases"][ci];
     const std::string cw = where + ": cases[" + std::to_string(ci) + "]";
+    check_keys(cj,
+               {"name", "kind", "scene", "dt", "integrators", "backends", "energy_blowup",
+                "penetration_tolerance", "displacement_limit", "stiffness", "speeds", "thickness"},
+               Loc{where, "cases"}[ci]);
     Case c;
     c.name = cj.value("name", "case" + std::to_string(ci));
     c.kind = cj.value("kind", std::string("run"));

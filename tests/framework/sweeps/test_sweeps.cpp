@@ -212,3 +212,23 @@ TEST_CASE("stress: the sdf backend never tunnels, and Box2D reports its speed ca
   CHECK(sdf == 15);
   CHECK(box2d_errors > 0);
 }
+
+TEST_CASE("bench and stress configs: an unknown key is an error naming the file and path") {
+  // A misspelt key would otherwise be ignored and the sweep run half-configured.
+  const fs::path dir = pinsim::test::temp_dir("sweep-keys");
+  std::string bench = kBench;
+  bench.replace(bench.find("\"answer\""), 8, "\"answr\"");
+  pinsim::test::write_file(dir / "bench.json", bench);
+  auto r =
+      pinsim_cli("-q bench " + (dir / "bench.json").string() + " --out " + (dir / "out").string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output, Catch::Contains("bench.json") && Catch::Contains("cases[0]") &&
+                           Catch::Contains("answr"));
+  pinsim::test::write_file(dir / "stress.json", R"({"cases": [{"name": "t", "kind": "tunnelling",
+    "speeds": [1], "thickness": [0.01], "dt": [0.01], "displacement_limt": 0.2}]})");
+  r = pinsim_cli("-q stress " + (dir / "stress.json").string() + " --out " +
+                 (dir / "out2").string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output, Catch::Contains("stress.json") && Catch::Contains("cases[0]") &&
+                           Catch::Contains("displacement_limt"));
+}
