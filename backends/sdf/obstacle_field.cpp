@@ -339,6 +339,15 @@ Vec2 ObstacleField::carry(std::size_t k, const Vec2& p, double t0, double t1) co
   return p;
 }
 
+double ObstacleField::clearance_except(std::size_t k, const Vec2& p) const {
+  double d = HUGE_VAL;
+  for (uint32_t q : static_)
+    if (q != k) d = std::min(d, obs_[q].shape.eval<false>(p).d);
+  for (uint32_t q : moving_)
+    if (q != k) d = std::min(d, lower_bound(q, p));
+  return d;
+}
+
 double ObstacleField::lower_bound(std::size_t k, const Vec2& p) const {
   const Obstacle& o = obs_[k];
   double lb = -HUGE_VAL;

@@ -72,6 +72,13 @@ class ObstacleField {
   Vec2 carry(std::size_t k, const Vec2& p, double t0, double t1) const;
   /// Lower bound of obstacle k's signed distance at p, valid at every time.
   double lower_bound(std::size_t k, const Vec2& p) const;
+  /// Lower bound of static obstacle k's signed distance over the segment from a to b.
+  double segment_lower_bound(std::size_t k, const Vec2& a, const Vec2& b) const {
+    return obs_[k].shape.segment_bounds(a, b).first;
+  }
+  /// Lower bound, valid at every time, of the signed distance at p to every obstacle but k:
+  /// static obstacles evaluated, moving ones by lower_bound.
+  double clearance_except(std::size_t k, const Vec2& p) const;
   /// Grid statistics: cells and mean candidates per cell.
   std::pair<std::size_t, double> grid_stats() const;
 

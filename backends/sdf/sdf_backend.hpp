@@ -67,6 +67,9 @@ class SdfBackend {
   /// Moves particle i from (x, v) at time t over `dur`; false if the caps stopped it early.
   bool march(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
              EventSink& ev, Probe* probe = nullptr);
+  /// Step along a sliding contact with static obstacle k (see sdf_backend.cpp), 0 if none.
+  double slide_step(std::size_t k, const Vec2& x, const Vec2& v, double r, double remaining,
+                    double lip) const;
   /// True if no moving obstacle can reach the points a Rest record's step queried, in the
   /// step now being taken, so the record can be replayed.
   bool far_from_moving(const Rest& m) const;

@@ -293,4 +293,70 @@ std::size_t ShapeTree::primitives() const {
   return k;
 }
 
+// Bounds of f along P(s) = a + s (b - a), s in [0, 1], from f and its gradient g at both
+// ends. A convex f lies above its tangents, f(s) >= f(a) + s g_a.D and
+// f(s) >= f(b) - (1 - s) g_b.D, and below its chord, so max f = max(f(a), f(b)); the lower
+// bound is the least value of the larger tangent. Any exact SDF is 1-Lipschitz:
+// f(s) >= (f(a) + f(b) - |D|) / 2 over the segment. Union is min, intersection max,
+// containers and subtracted shapes negate (lower and upper bounds swap).
+std::pair<double, double> ShapeTree::segment_node(uint32_t i, const Vec2& aw,
+                                                  const Vec2& bw) const {
+  using namespace eval_detail;
+  const ShapeNode& n = nodes_[i];
+  const Vec2 a = n.transformed ? rot_inv(n.tc, n.ts, aw - n.tt) : aw;
+  const Vec2 b = n.transformed ? rot_inv(n.tc, n.ts, bw - n.tt) : bw;
+  switch (n.type) {
+    case ShapeType::kUnion:
+    case ShapeType::kIntersection: {
+      const bool uni = n.type == ShapeType::kUnion;
+      std::pair<double, double> out{0.0, 0.0};
+      for (uint32_t k = 0; k < n.count; ++k) {
+        const auto c = segment_node(children_[n.first + k], a, b);
+        if (k == 0)
+          out = c;
+        else if (uni)
+          out = {std::min(out.first, c.first), std::min(out.second, c.second)};
+        else
+          out = {std::max(out.first, c.first), std::max(out.second, c.second)};
+      }
+      return out;
+    }
+    case ShapeType::kSubtraction: {
+      auto out = segment_node(children_[n.first], a, b);
+      for (uint32_t k = 1; k < n.count; ++k) {
+        const auto c = segment_node(children_[n.first + k], a, b);
+        out = {std::max(out.first, -c.second), std::max(out.second, -c.first)};
+      }
+      return out;
+    }
+    case ShapeType::kInside: {
+      const auto c = segment_node(children_[n.first], a, b);
+      return {-c.second, -c.first};
+    }
+    default:
+      break;
+  }
+  const Sdf fa = eval_primitive<true>(n, a), fb = eval_primitive<true>(n, b);
+  const Vec2 dab = b - a;
+  const double len = dab.norm();
+  const double lo_lip = 0.5 * (fa.d + fb.d - len), hi_lip = 0.5 * (fa.d + fb.d + len);
+  const bool convex = n.type == ShapeType::kCircle || n.type == ShapeType::kBox ||
+                      n.type == ShapeType::kRoundedBox || n.type == ShapeType::kCapsule ||
+                      n.type == ShapeType::kTaperedCapsule ||
+                      (n.type == ShapeType::kPolygon && n.count == 3);
+  if (n.type == ShapeType::kHalfPlane) return {std::min(fa.d, fb.d), std::max(fa.d, fb.d)};
+  if (!convex) return {lo_lip, hi_lip};
+  const double sa = fa.g.dot(dab), sb = fb.g.dot(dab);
+  double lo = 0.0;
+  if (sa >= 0.0) {
+    lo = fa.d;
+  } else if (sb <= 0.0) {
+    lo = fb.d;
+  } else {  // the tangents cross at s = (f(a) - f(b) + g_b.D) / (g_b.D - g_a.D)
+    const double s = std::clamp((fa.d - fb.d + sb) / (sb - sa), 0.0, 1.0);
+    lo = fa.d + sa * s;
+  }
+  return {std::max(lo, lo_lip), std::min(std::max(fa.d, fb.d), hi_lip)};
+}
+
 }  // namespace pinsim::sdf

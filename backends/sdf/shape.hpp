@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <pinsim/plugin.hpp>
+#include <utility>
 #include <vector>
 
 #include "json_in.hpp"
@@ -88,6 +89,13 @@ class ShapeTree {
     // most obstacles are one untransformed primitive: skip the tree walk
     return root_primitive_ ? eval_primitive<G>(nodes_[root_], p) : eval_node<G>(root_, p);
   }
+  /// Lower and upper bounds of the signed distance over the segment from a to b (shape
+  /// frame), from the values and gradients at the two ends: exact for half-planes, by
+  /// convexity for convex primitives (the SDF of a convex set is convex), by the Lipschitz
+  /// bound otherwise; combined through the tree as min / max / negation.
+  std::pair<double, double> segment_bounds(const Vec2& a, const Vec2& b) const {
+    return segment_node(root_, a, b);
+  }
   /// Bounds of the solid in the shape frame (unbounded for half-planes and containers).
   Aabb bounds() const { return bounds_node(root_); }
   /// Bounds of the boundary curve (a container's inner shape); unbounded if none.
@@ -102,6 +110,7 @@ class ShapeTree {
   template <bool G>
   Sdf eval_primitive(const ShapeNode& n, const Vec2& p) const;
   Aabb bounds_node(uint32_t i) const;
+  std::pair<double, double> segment_node(uint32_t i, const Vec2& a, const Vec2& b) const;
 
   std::vector<ShapeNode> nodes_;
   std::vector<uint32_t> children_;

@@ -299,6 +299,62 @@ TEST_CASE("a resting ball on a floor stays within the contact offset for 1e5 ste
   CHECK(sim.backend->stats().cap_hits == 0);
 }
 
+TEST_CASE("a ball sliding round the inside of a circular wall keeps its speed, on the circle") {
+  // Frictionless, e = 1, no gravity: a ball launched tangentially inside a circle of radius
+  // R runs round it at constant speed V on the circle of radius rho = R - r (less the
+  // contact offset), so after time T it has turned by V T / rho. Impulses reflect the
+  // normal velocity, so |v| is kept to rounding; the ball never goes past the surface.
+  const double R = 0.25, r = 0.0135, V = 2.0, dt = 2e-4;
+  json scene = {
+      {"obstacles",
+       {obstacle("wall", {{"type", "inside"},
+                          {"shape", {{"type", "circle"}, {"center", {0, 0}}, {"radius", R}}}})}}};
+  Sim sim(scene, {{Vec2(R - r - 1e-5, 0), Vec2(0, V), r}});
+  const double dm = sim.backend->depth_min();
+  const int steps = 5000;
+  double lo = HUGE_VAL, hi = -HUGE_VAL;
+  for (int n = 0; n < steps; ++n) {
+    sim.step(dt);
+    const double gap = R - sim.pos().norm() - r;
+    lo = std::min(lo, gap);
+    hi = std::max(hi, gap);
+  }
+  CHECK(lo >= 0.0);
+  CHECK(hi <= 2 * dm);
+  CHECK(sim.vel().norm() == Approx(V).epsilon(1e-9));
+  const double rho = R - r - dm;
+  const double turned = std::atan2(sim.pos().y(), sim.pos().x());
+  const double exact = std::remainder(V * steps * dt / rho, 2 * M_PI);
+  CHECK(std::remainder(turned - exact, 2 * M_PI) == Approx(0.0).margin(1e-3));
+  CHECK(sim.backend->stats().cap_hits == 0);
+  // sliding takes the step whole instead of depth_min at a time (V dt / depth_min = 40)
+  CHECK(sim.backend->stats().queries <= 4u * steps);
+}
+
+TEST_CASE("a ball sliding along a box floor into a corner stays out of the walls") {
+  // Under gravity on the floor of a container box, thrown along it at 3 m/s with e = 0.5:
+  // it slides to the side wall, bounces off at 1.5 m/s (its normal speed times e), and
+  // never ends a step past any surface.
+  const double r = 0.01, dt = 2e-4, g = 9.81;
+  json scene = {
+      {"obstacles",
+       {obstacle("box",
+                 {{"type", "inside"},
+                  {"shape", {{"type", "box"}, {"center", {0, 0}}, {"half_size", {0.2, 0.1}}}}},
+                 0.5)}}};
+  Sim sim(scene, {{Vec2(0, -0.1 + r + 1e-5), Vec2(3.0, 0), r}}, {{"rest_speed", 0.01}});
+  for (int n = 0; n < 1000; ++n) {
+    sim.step(dt, Vec2(0, -g));
+    const Vec2 p = sim.pos();
+    REQUIRE(p.y() + 0.1 - r >= 0.0);
+    REQUIRE(0.2 - p.x() - r >= 0.0);
+    REQUIRE(p.x() + 0.2 - r >= 0.0);
+  }
+  REQUIRE(sim.events.size() == 1);
+  CHECK(sim.events[0].vn_before == Approx(-3.0).epsilon(1e-12));
+  CHECK(sim.vel().x() == Approx(-1.5).epsilon(1e-12));
+}
+
 TEST_CASE("particle-particle contacts only when the scene turns them on") {
   // Equal masses, head-on, e = 1: the velocities are exchanged.
   const std::vector<Ball> balls = {{Vec2(-0.5, 0), Vec2(1, 0), 0.1},

@@ -157,6 +157,39 @@ TEST_CASE("boolean operations and transforms") {
     CHECK(shape(b1).eval<false>(q).d == Approx(shape(b2).eval<false>(q).d).margin(1e-14));
 }
 
+TEST_CASE("segment bounds hold at every point of the segment") {
+  // ShapeTree::segment_bounds (used to take a sliding ball's step whole): for random
+  // segments, short and long, every sampled point's SDF lies within the bounds; a triangle,
+  // unions, intersections and containers of the primitives included.
+  std::vector<json> shapes(std::begin(kShapes), std::end(kShapes));
+  shapes.push_back({{"type", "polygon"}, {"points", {{0, 0}, {0.8, 0.1}, {0.2, 0.7}}}});
+  shapes.push_back({{"type", "inside"},
+                    {"shape",
+                     {{"type", "union"},
+                      {"shapes",
+                       {{{"type", "box"}, {"center", {0, 0}}, {"half_size", {0.5, 0.4}}},
+                        {{"type", "circle"}, {"center", {0, 0.4}}, {"radius", 0.5}}}}}}});
+  shapes.push_back({{"type", "intersection"}, {"shapes", {kShapes[0], kShapes[3]}}});
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> u(-1.2, 1.2), ul(-4.0, 0.5);
+  for (const json& j : shapes) {
+    const ShapeTree s = shape(j);
+    for (int n = 0; n < 2000; ++n) {
+      const Vec2 a(u(rng), u(rng));
+      const double len = std::pow(10.0, ul(rng));
+      const double ang = u(rng) * 3.0;
+      const Vec2 b = a + len * Vec2(std::cos(ang), std::sin(ang));
+      const auto [lo, hi] = s.segment_bounds(a, b);
+      for (int k = 0; k <= 32; ++k) {
+        const double f = s.eval<false>(a + (b - a) * (k / 32.0)).d;
+        INFO(j.dump() << " segment " << n << " sample " << k);
+        REQUIRE(f >= lo - 1e-12);
+        REQUIRE(f <= hi + 1e-12);
+      }
+    }
+  }
+}
+
 TEST_CASE("bad obstacles are rejected with the JSON path and what was expected") {
   auto err = [](const json& obstacles, const json& inputs = json::array()) {
     try {
