@@ -171,6 +171,12 @@ void ObstacleField::build_grid(const std::vector<Vec2>& extra, long grid_cells) 
   const double hd = 0.5 * cell * std::sqrt(2.0);
   const std::size_t cells = static_cast<std::size_t>(g_nx_) * static_cast<std::size_t>(g_ny_);
   g_cells_.assign(cells, Cell{});
+  // (a tree too large for a 15-bit node index: no grid)
+  auto fail_grid = [this] {
+    g_nx_ = g_ny_ = 0;
+    g_cells_.clear();
+    g_cand_.clear();
+  };
   std::vector<double> f(static_.size());
   std::vector<std::pair<double, uint32_t>> order;
   // a float bound never above the double one, so skipping by it is exact
@@ -198,11 +204,29 @@ void ObstacleField::build_grid(const std::vector<Vec2>& extra, long grid_cells) 
       Cell& cl = g_cells_[static_cast<std::size_t>(iy) * static_cast<std::size_t>(g_nx_) +
                           static_cast<std::size_t>(ix)];
       cl.first = static_cast<uint32_t>(g_cand_.size());
-      for (const auto& [lb, k] : order) g_cand_.push_back({round_down(lb), k});
-      cl.statics = static_cast<uint16_t>(order.size());
+      // each static candidate's tree reduced to the part that decides it over the cell; the
+      // first (there is always one: the least f) is stored in the cell itself
+      for (std::size_t q = 0; q < order.size(); ++q) {
+        const auto [lb, k] = order[q];
+        const ShapeTree::Reduced red = obs_[k].shape.reduce(c, hd * (1.0 + 1e-6) + 1e-12);
+        if (red.node >= 0x8000u) return fail_grid();
+        const Candidate cand{round_down(lb), static_cast<uint16_t>(k),
+                             static_cast<uint16_t>(red.node | (red.neg ? 0x8000u : 0u))};
+        if (q == 0) {
+          cl.k0 = cand.k;
+          cl.node0 = cand.node;
+        } else {
+          g_cand_.push_back(cand);
+        }
+      }
+      cl.statics = static_cast<uint16_t>(order.size() - 1);
       // a moving obstacle whose lower bound over the cell exceeds ub is never nearest here
-      for (uint32_t k : moving_)
-        if (lower_bound(k, c) - hd <= lim) g_cand_.push_back({-HUGE_VALF, k});
+      // with its lower bound over the cell and all its poses, so a query can skip it
+      // without computing lower_bound
+      for (uint32_t k : moving_) {
+        const double lb = cell_lower_bound(k, c, hd * (1.0 + 1e-6) + 1e-12);
+        if (lb <= lim) g_cand_.push_back({round_down(lb), static_cast<uint16_t>(k), 0});
+      }
       cl.moving = static_cast<uint16_t>(g_cand_.size() - cl.first - cl.statics);
     }
   }
@@ -211,7 +235,7 @@ void ObstacleField::build_grid(const std::vector<Vec2>& extra, long grid_cells) 
 std::pair<std::size_t, double> ObstacleField::grid_stats() const {
   const std::size_t cells = static_cast<std::size_t>(g_nx_) * g_ny_;
   std::size_t statics = 0;
-  for (const Cell& c : g_cells_) statics += c.statics;
+  for (const Cell& c : g_cells_) statics += c.statics + 1u;
   return {cells, cells ? static_cast<double>(statics) / static_cast<double>(cells) : 0.0};
 }
 
@@ -221,8 +245,8 @@ Sdf ObstacleField::eval_at(const Obstacle& o, const Vec2& p, double t) const {
     case MotionType::kStatic:
       return o.shape.eval<G>(p);
     case MotionType::kFlipper: {
-      const double a = o.timeline->value(t);
-      const double c = std::cos(a), s = std::sin(a);
+      double c = 1.0, s = 0.0;
+      o.timeline->value_cos_sin(t, c, s);
       Sdf r = o.shape.eval<G>(rot_inv(c, s, p - o.pivot));
       if constexpr (G) r.g = rot(c, s, r.g);
       return r;
@@ -261,15 +285,17 @@ Nearest ObstacleField::nearest_impl(const Vec2& p, double t) const {
     if (fx >= 0.0 && fy >= 0.0 && fx < g_nx_ && fy < g_ny_) {
       const Cell cl = g_cells_[static_cast<std::size_t>(fy) * static_cast<std::size_t>(g_nx_) +
                                static_cast<std::size_t>(fx)];
+      offer(cl.k0, obs_[cl.k0].shape.eval_reduced<G>(cl.node0 & 0x7FFFu, cl.node0 >> 15, p));
       const Candidate* c = g_cand_.data() + cl.first;
       for (const Candidate* e = c + cl.statics; c != e; ++c) {
         if (static_cast<double>(c->lb) >= best.d) {
           c = e;
           break;
         }
-        offer(c->k, obs_[c->k].shape.eval<G>(p));
+        offer(c->k, obs_[c->k].shape.eval_reduced<G>(c->node & 0x7FFFu, c->node >> 15, p));
       }
-      for (const Candidate* e = c + cl.moving; c != e; ++c) offer_moving(c->k);
+      for (const Candidate* e = c + cl.moving; c != e; ++c)
+        if (static_cast<double>(c->lb) < best.d) offer_moving(c->k);
       return best;
     }
   }
@@ -337,6 +363,34 @@ Vec2 ObstacleField::carry(std::size_t k, const Vec2& p, double t0, double t1) co
       return p + (o.timeline->value(t1) - o.timeline->value(t0)) * o.offset;
   }
   return p;
+}
+
+// Moving obstacle k's SDF at any point within `rad` of c and any time: the poses are
+// sampled at N midpoints of the flipper's angle range (slider's stroke); every pose is
+// within reach * dtheta / 2 (|offset| / 2N) of a sample in Hausdorff distance, which bounds
+// the change of the SDF, and the SDF is 1-Lipschitz in space.
+double ObstacleField::cell_lower_bound(std::size_t k, const Vec2& c, double rad) const {
+  const Obstacle& o = obs_[k];
+  constexpr int kSamples = 32;
+  double lb = HUGE_VAL, slack = 0.0;
+  if (o.motion == MotionType::kFlipper) {
+    const double lo = o.timeline->lo(), step = (o.timeline->hi() - lo) / kSamples;
+    for (int i = 0; i < kSamples; ++i) {
+      const double a = lo + (i + 0.5) * step;
+      lb = std::min(lb, o.shape.eval<false>(rot_inv(std::cos(a), std::sin(a), c - o.pivot)).d);
+    }
+    slack = o.reach * 0.5 * step;
+  } else if (o.motion == MotionType::kSlider) {
+    const double lo = o.timeline->lo(), step = (o.timeline->hi() - lo) / kSamples;
+    for (int i = 0; i < kSamples; ++i)
+      lb = std::min(lb, o.shape.eval<false>(c - (lo + (i + 0.5) * step) * o.offset).d);
+    slack = o.offset.norm() * 0.5 * step;
+  } else {
+    return o.shape.eval<false>(c).d - rad;
+  }
+  // (1e-9 relative: rounding of the samples and the slack itself)
+  lb -= slack * (1.0 + 1e-9) + rad + 1e-9 * std::abs(lb);
+  return std::max(lb, lower_bound(k, c) - rad);
 }
 
 double ObstacleField::clearance_except(std::size_t k, const Vec2& p) const {

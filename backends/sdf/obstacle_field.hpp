@@ -86,6 +86,8 @@ class ObstacleField {
   template <bool G>
   Sdf eval_at(const Obstacle& o, const Vec2& p, double t) const;
   void build_grid(const std::vector<Vec2>& extra, long grid_cells);
+  /// Lower bound of obstacle k's SDF within `rad` of c, at every time (for grid cells).
+  double cell_lower_bound(std::size_t k, const Vec2& c, double rad) const;
   template <bool G>
   Nearest nearest_impl(const Vec2& p, double t) const;
 
@@ -94,17 +96,21 @@ class ObstacleField {
   std::vector<uint32_t> moving_;  ///< indices of moving obstacles
   // Uniform grid over static obstacles: cell c lists the obstacles that can be nearest
   // somewhere in the cell (Lipschitz bound: |sdf(p) - sdf(centre)| <= half diagonal).
-  // A query touches one 8-byte cell and its candidates, stored contiguously: first the
-  // static ones in increasing order of their lower bound over the cell, then the moving
-  // ones that can be nearest there.
+  // A query touches one 12-byte cell, which holds the static candidate of least lower
+  // bound (evaluated first, always), and the cell's other candidates, stored contiguously:
+  // first the static ones in increasing order of their lower bound over the cell, then the
+  // moving ones that can be nearest there.
   struct Cell {
-    uint32_t first = 0;    ///< index of the cell's first candidate in g_cand_
-    uint16_t statics = 0;  ///< static candidates
+    uint32_t first = 0;    ///< index of the cell's second candidate in g_cand_
+    uint16_t statics = 0;  ///< static candidates after the first
     uint16_t moving = 0;   ///< moving candidates after them
+    uint16_t k0 = 0;       ///< first static candidate: obstacle index
+    uint16_t node0 = 0;    ///< and its reduced tree, as Candidate::node
   };
   struct Candidate {
-    float lb = 0.0f;  ///< lower bound of the obstacle's SDF over the cell, rounded down
-    uint32_t k = 0;   ///< obstacle index
+    float lb = 0.0f;    ///< lower bound of the obstacle's SDF over the cell, rounded down
+    uint16_t k = 0;     ///< obstacle index
+    uint16_t node = 0;  ///< static: its tree reduced over the cell, node | neg << 15
   };
   Vec2 g_lo_{0.0, 0.0};
   double g_inv_ = 0.0;

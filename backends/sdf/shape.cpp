@@ -293,6 +293,36 @@ std::size_t ShapeTree::primitives() const {
   return k;
 }
 
+ShapeTree::Reduced ShapeTree::reduce(const Vec2& c, double radius) const {
+  Reduced r{root_, false};
+  const double m = 2.0 * radius;
+  for (;;) {
+    const ShapeNode& n = nodes_[r.node];
+    if (n.transformed || n.type < ShapeType::kUnion) return r;
+    const uint32_t* ch = children_.data() + n.first;
+    if (n.type == ShapeType::kInside) {
+      r = {ch[0], !r.neg};
+      continue;
+    }
+    // operand values at c: children, negated after the first in a subtraction
+    const bool sub = n.type == ShapeType::kSubtraction;
+    const bool take_max = n.type != ShapeType::kUnion;
+    uint32_t win = n.count;
+    for (uint32_t k = 0; k < n.count && win == n.count; ++k) {
+      const double fk = (sub && k > 0 ? -1.0 : 1.0) * eval_node<false>(ch[k], c).d;
+      bool wins = true;
+      for (uint32_t j = 0; j < n.count && wins; ++j) {
+        if (j == k) continue;
+        const double fj = (sub && j > 0 ? -1.0 : 1.0) * eval_node<false>(ch[j], c).d;
+        wins = take_max ? fk - m > fj : fk + m < fj;
+      }
+      if (wins) win = k;
+    }
+    if (win == n.count) return r;
+    r = {ch[win], sub && win > 0 ? !r.neg : r.neg};
+  }
+}
+
 // Bounds of f along P(s) = a + s (b - a), s in [0, 1], from f and its gradient g at both
 // ends. A convex f lies above its tangents, f(s) >= f(a) + s g_a.D and
 // f(s) >= f(b) - (1 - s) g_b.D, and below its chord, so max f = max(f(a), f(b)); the lower

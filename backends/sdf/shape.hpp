@@ -89,6 +89,27 @@ class ShapeTree {
     // most obstacles are one untransformed primitive: skip the tree walk
     return root_primitive_ ? eval_primitive<G>(nodes_[root_], p) : eval_node<G>(root_, p);
   }
+  /// A node and a sign whose evaluation, negated if `neg`, equals the whole tree's to the
+  /// bit everywhere within `radius` of c: found by descending through containers and
+  /// through untransformed unions, intersections and subtractions one of whose operands
+  /// wins by more than 2 radius at c (all nodes are 1-Lipschitz, so it wins over the disc).
+  struct Reduced {
+    uint32_t node = 0;
+    bool neg = false;
+  };
+  Reduced reduce(const Vec2& c, double radius) const;
+  /// Evaluation of a reduced tree: eval_node(node), negated if neg.
+  template <bool G>
+  Sdf eval_reduced(uint32_t node, bool neg, const Vec2& p) const {
+    const ShapeNode& n = nodes_[node];
+    Sdf s = n.type < ShapeType::kUnion && !n.transformed ? eval_primitive<G>(n, p)
+                                                         : eval_node<G>(node, p);
+    if (neg) {
+      s.d = -s.d;
+      if constexpr (G) s.g = -s.g;
+    }
+    return s;
+  }
   /// Lower and upper bounds of the signed distance over the segment from a to b (shape
   /// frame), from the values and gradients at the two ends: exact for half-planes, by
   /// convexity for convex primitives (the SDF of a convex set is convex), by the Lipschitz

@@ -15,7 +15,8 @@ class Timeline {
   /// while released back towards `rest` at `speed_release`; stops on reaching the target.
   /// `events` are (time, pressed?) in time order.
   Timeline(double rest, double pressed, double speed_press, double speed_release,
-           const std::vector<std::pair<double, bool>>& events) {
+           const std::vector<std::pair<double, bool>>& events)
+      : lo_(std::min(rest, pressed)), hi_(std::max(rest, pressed)) {
     push(0.0, rest, 0.0);
     double target = rest;
     for (const auto& [te, press] : events) {
@@ -43,6 +44,20 @@ class Timeline {
     const Seg& s = at(t);
     return s.slope == 0.0 ? s.v : s.v + s.slope * (t - s.t);
   }
+  /// Value at time t with its cosine and sine (an angle); the same bits as std::cos and
+  /// std::sin of value(t), taken from the segment while the value stands still.
+  double value_cos_sin(double t, double& c, double& sn) const {
+    const Seg& s = at(t);
+    if (s.slope == 0.0) {
+      c = s.c;
+      sn = s.s;
+      return s.v;
+    }
+    const double v = s.v + s.slope * (t - s.t);
+    c = std::cos(v);
+    sn = std::sin(v);
+    return v;
+  }
   /// Rate of change at time t (the segment starting at or before t).
   double rate(double t) const { return at(t).slope; }
   /// Largest |rate| over [t0, t1].
@@ -62,18 +77,23 @@ class Timeline {
       m = std::max(m, std::abs(seg_[k].slope));
     return m;
   }
+  /// Least and greatest value it can take (rest and pressed).
+  double lo() const { return lo_; }
+  double hi() const { return hi_; }
   /// True if the value never changes.
   bool constant() const { return seg_.size() == 1; }
 
  private:
   struct Seg {
     double t, v, slope;
+    double c, s;  ///< cos v, sin v
   };
   void push(double t, double v, double slope) {
+    const Seg g{t, v, slope, std::cos(v), std::sin(v)};
     if (!seg_.empty() && seg_.back().t == t)
-      seg_.back() = {t, v, slope};
+      seg_.back() = g;
     else
-      seg_.push_back({t, v, slope});
+      seg_.push_back(g);
   }
   std::size_t index(double t) const {
     const auto it = std::upper_bound(seg_.begin(), seg_.end(), t,
@@ -83,6 +103,7 @@ class Timeline {
   const Seg& at(double t) const { return seg_[index(t)]; }
 
   std::vector<Seg> seg_;
+  double lo_ = 0.0, hi_ = 0.0;
 };
 
 }  // namespace pinsim::sdf

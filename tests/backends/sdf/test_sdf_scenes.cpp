@@ -28,6 +28,74 @@ TEST_CASE("grid queries equal brute-force queries on the pinball table") {
   }
 }
 
+TEST_CASE("grid queries equal brute force to the bit with booleans, flippers and sliders") {
+  // The grid stores each static obstacle's tree reduced to the operand that decides it
+  // over a cell, and moving obstacles' bounds over all their poses: distances, obstacle
+  // and gradient must be those of the full trees.
+  const json circ = {{"type", "circle"}, {"center", {0.3, 0.3}}, {"radius", 0.12}};
+  const json box = {{"type", "box"}, {"center", {0.4, 0.3}}, {"half_size", {0.1, 0.05}}};
+  const json cap = {{"type", "capsule"}, {"a", {0.2, 0.6}}, {"b", {0.5, 0.7}}, {"radius", 0.03}};
+  const json scene = {
+      {"obstacles",
+       {obstacle("walls", {{"type", "inside"},
+                           {"shape",
+                            {{"type", "union"},
+                             {"shapes",
+                              {{{"type", "box"}, {"center", {0.5, 0.5}}, {"half_size", {0.5, 0.4}}},
+                               {{"type", "circle"}, {"center", {0.5, 0.9}}, {"radius", 0.5}}}}}}}),
+        obstacle("sub", {{"type", "subtraction"}, {"shapes", {circ, box}}}),
+        obstacle(
+            "inter",
+            {{"type", "intersection"},
+             {"shapes", {cap, {{"type", "circle"}, {"center", {0.35, 0.65}}, {"radius", 0.12}}}}}),
+        obstacle("moved", {{"type", "union"},
+                           {"shapes", {box, cap}},
+                           {"transform", {{"translate", {0.3, 0.1}}, {"rotate", 0.5}}}}),
+        obstacle("tri", {{"type", "polygon"}, {"points", {{0.7, 0.2}, {0.9, 0.25}, {0.75, 0.4}}}}),
+        {{"id", "flipper"},
+         {"shape",
+          {{"type", "tapered_capsule"},
+           {"a", {0, 0}},
+           {"b", {0.15, 0}},
+           {"radius_a", 0.02},
+           {"radius_b", 0.01}}},
+         {"motion",
+          {{"type", "flipper"},
+           {"pivot", {0.2, 0.2}},
+           {"rest_angle", -0.5},
+           {"raised_angle", 0.5},
+           {"angular_speed", 20.0},
+           {"input", "f"}}}},
+        {{"id", "slider"},
+         {"shape", {{"type", "box"}, {"center", {0.8, 0.7}}, {"half_size", {0.03, 0.03}}}},
+         {"motion",
+          {{"type", "slider"}, {"offset", {0.0, -0.2}}, {"speed", 1.0}, {"input", "s"}}}}}},
+      {"inputs",
+       {{{"t", 0.1}, {"input", "f"}, {"action", "press"}},
+        {{"t", 0.3}, {"input", "f"}, {"action", "release"}},
+        {{"t", 0.2}, {"input", "s"}, {"action", "press"}},
+        {{"t", 0.5}, {"input", "s"}, {"action", "release"}}}}};
+  Sim grid(scene, {}, {{"grid_cells", 4096}});
+  Sim brute(scene, {}, {{"grid_cells", 0}});
+  REQUIRE(grid.backend->field().grid_stats().first > 1000);
+  std::mt19937_64 rng(5);
+  std::uniform_real_distribution<double> ux(-0.05, 1.05), uy(-0.05, 1.45), ut(0.0, 1.0);
+  for (int n = 0; n < 100000; ++n) {
+    const Vec2 p(ux(rng), uy(rng));
+    const double t = ut(rng);
+    const Nearest a = grid.backend->field().nearest_with_gradient(p, t);
+    const Nearest b = brute.backend->field().nearest_with_gradient(p, t);
+    INFO("p = (" << p.x() << ", " << p.y() << "), t = " << t);
+    REQUIRE(a.d == b.d);
+    REQUIRE(a.k == b.k);
+    REQUIRE(a.g.x() == b.g.x());
+    REQUIRE(a.g.y() == b.g.y());
+    const Nearest c = grid.backend->field().nearest(p, t);
+    REQUIRE(c.d == b.d);
+    REQUIRE(c.k == b.k);
+  }
+}
+
 TEST_CASE("the pinball ball stays on the table and hits things") {
   const json scene = load_config("pinball.json");
   std::vector<Ball> balls;
