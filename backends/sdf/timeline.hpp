@@ -95,10 +95,17 @@ class Timeline {
     else
       seg_.push_back(g);
   }
+  /// The last segment starting at or before t (0 if none), as upper_bound - 1; a binary
+  /// search without data-dependent branches (random query times mispredict them).
   std::size_t index(double t) const {
-    const auto it = std::upper_bound(seg_.begin(), seg_.end(), t,
-                                     [](double x, const Seg& s) { return x < s.t; });
-    return it == seg_.begin() ? 0 : static_cast<std::size_t>(it - seg_.begin() - 1);
+    const Seg* base = seg_.data();
+    std::size_t n = seg_.size();
+    while (n > 1) {
+      const std::size_t half = n / 2;
+      base = !(t < base[half].t) ? base + half : base;
+      n -= half;
+    }
+    return static_cast<std::size_t>(base - seg_.data());
   }
   const Seg& at(double t) const { return seg_[index(t)]; }
 
