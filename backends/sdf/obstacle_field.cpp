@@ -294,8 +294,10 @@ Nearest ObstacleField::nearest_impl(const Vec2& p, double t) const {
         }
         offer(c->k, obs_[c->k].shape.eval_reduced<G>(c->node & 0x7FFFu, c->node >> 15, p));
       }
+      // (no lower_bound here: the candidate's bound over the cell already prunes nearly
+      // every pose that could, and skipping a bound never changes the result)
       for (const Candidate* e = c + cl.moving; c != e; ++c)
-        if (static_cast<double>(c->lb) < best.d) offer_moving(c->k);
+        if (static_cast<double>(c->lb) < best.d) offer(c->k, eval_at<G>(obs_[c->k], p, t));
       return best;
     }
   }

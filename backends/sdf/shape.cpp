@@ -71,7 +71,7 @@ uint32_t ShapeTree::parse_node(const JsonIn& j, int depth) {
 
   if (type == "circle") {
     j.only({"type", "transform", "center", "radius"});
-    n.type = ShapeType::kCircle;
+    n.type = ShapeType::kCircle;  // evaluated as a rounded box of half size 0
     n.c = j.vec2("center");
     n.r0 = j.number_if("radius", pos, "must be > 0");
   } else if (type == "box" || type == "rounded_box") {
@@ -102,15 +102,17 @@ uint32_t ShapeTree::parse_node(const JsonIn& j, int depth) {
     }
   } else if (type == "capsule") {
     j.only({"type", "transform", "a", "b", "radius"});
+    // evaluated as a rounded box of half size (|b - a| / 2, 0) about the midpoint, rotated
+    // to the axis: the distance to the segment, minus the radius
     n.type = ShapeType::kCapsule;
-    n.c = j.vec2("a");
-    n.b = j.vec2("b") - n.c;
+    const Vec2 a = j.vec2("a"), ab = j.vec2("b") - a;
     n.r0 = j.number_if("radius", nonneg, "must be >= 0");
-    const double bb = n.b.squaredNorm();
-    n.k0 = bb > 0.0 ? 1.0 / bb : 0.0;
-    if (bb > 0.0) {
-      n.ca = n.b.x() / std::sqrt(bb);
-      n.sa = n.b.y() / std::sqrt(bb);
+    const double len = ab.norm();
+    n.c = a + 0.5 * ab;
+    n.b = Vec2(0.5 * len, 0.0);
+    if (len > 0.0) {
+      n.ca = ab.x() / len;
+      n.sa = ab.y() / len;
     }
   } else if (type == "tapered_capsule") {
     j.only({"type", "transform", "a", "b", "radius_a", "radius_b"});
@@ -221,6 +223,14 @@ Aabb ShapeTree::bounds_node(uint32_t i) const {
       b.add(n.c - Vec2(n.r0, n.r0));
       b.add(n.c + Vec2(n.r0, n.r0));
       break;
+    case ShapeType::kCapsule: {
+      const Vec2 e = n.b.x() * Vec2(n.ca, n.sa), r(n.r0, n.r0);
+      for (const Vec2& end : {Vec2(n.c - e), Vec2(n.c + e)}) {
+        b.add(end - r);
+        b.add(end + r);
+      }
+      break;
+    }
     case ShapeType::kBox:
     case ShapeType::kRoundedBox: {
       const Vec2 h = n.b + Vec2(n.r0, n.r0);
@@ -228,12 +238,6 @@ Aabb ShapeTree::bounds_node(uint32_t i) const {
         b.add(n.c + rot(n.ca, n.sa, Vec2((k & 1) ? h.x() : -h.x(), (k & 2) ? h.y() : -h.y())));
       break;
     }
-    case ShapeType::kCapsule:
-      b.add(n.c - Vec2(n.r0, n.r0));
-      b.add(n.c + Vec2(n.r0, n.r0));
-      b.add(n.c + n.b - Vec2(n.r0, n.r0));
-      b.add(n.c + n.b + Vec2(n.r0, n.r0));
-      break;
     case ShapeType::kTaperedCapsule:
       b.add(n.c - Vec2(n.r0, n.r0));
       b.add(n.c + Vec2(n.r0, n.r0));

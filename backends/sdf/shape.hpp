@@ -68,8 +68,8 @@ struct ShapeNode {
   bool transformed = false;
   double tc = 1.0, ts = 0.0;  ///< transform rotation cos/sin: world = R local + tt
   Vec2 tt{0.0, 0.0};
-  Vec2 c{0.0, 0.0};           ///< centre / a / point
-  Vec2 b{0.0, 0.0};           ///< half size / b-a / normal
+  Vec2 c{0.0, 0.0};           ///< centre (circle, box, capsule midpoint) / a / point
+  Vec2 b{0.0, 0.0};           ///< half size (capsule: (length / 2, 0)) / axis / normal
   double ca = 1.0, sa = 0.0;  ///< primitive orientation (box angle, arc middle, capsule axis)
   double r0 = 0.0, r1 = 0.0;  ///< radius / corner radius / radius_a, radius_b / arc half-thickness
   double h = 0.0;             ///< tapered capsule length; arc: sin of half aperture in r1...
@@ -100,14 +100,15 @@ class ShapeTree {
   Reduced reduce(const Vec2& c, double radius) const;
   /// Evaluation of a reduced tree: eval_node(node), negated if neg.
   template <bool G>
-  Sdf eval_reduced(uint32_t node, bool neg, const Vec2& p) const {
+  [[gnu::always_inline]] Sdf eval_reduced(uint32_t node, bool neg, const Vec2& p) const {
     const ShapeNode& n = nodes_[node];
-    Sdf s = n.type < ShapeType::kUnion && !n.transformed ? eval_primitive<G>(n, p)
-                                                         : eval_node<G>(node, p);
-    if (neg) {
-      s.d = -s.d;
-      if constexpr (G) s.g = -s.g;
-    }
+    Sdf s = n.type <= ShapeType::kCapsule && !n.transformed ? eval_box<G>(n, p)
+            : n.type < ShapeType::kUnion && !n.transformed  ? eval_primitive<G>(n, p)
+                                                            : eval_node<G>(node, p);
+    // times +-1 rather than a branch: random queries would mispredict it (same bits as -x)
+    const double sign = neg ? -1.0 : 1.0;
+    s.d *= sign;
+    if constexpr (G) s.g *= sign;
     return s;
   }
   /// Lower and upper bounds of the signed distance over the segment from a to b (shape
@@ -130,6 +131,8 @@ class ShapeTree {
   Sdf eval_node(uint32_t i, const Vec2& p) const;
   template <bool G>
   Sdf eval_primitive(const ShapeNode& n, const Vec2& p) const;
+  template <bool G>
+  static Sdf eval_box(const ShapeNode& n, const Vec2& p);
   Aabb bounds_node(uint32_t i) const;
   std::pair<double, double> segment_node(uint32_t i, const Vec2& a, const Vec2& b) const;
 

@@ -1,5 +1,6 @@
 // SDF primitives: exact distances at known points, gradients against finite differences,
 // finite unit gradients at singular points, and scene validation messages.
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <random>
@@ -82,6 +83,38 @@ TEST_CASE("exact distances of the primitives at known points") {
   // container: inside the box the distance to the nearest wall, positive
   CHECK(shape(kShapes[9]).eval<false>({0.5, 0.0}).d == Approx(0.5));
   CHECK(shape(kShapes[9]).eval<false>({2.0, 0.0}).d == Approx(-1.0));
+}
+
+TEST_CASE("distances without and with the gradient are the same bits") {
+  // Queries that need no gradient take branch-free paths (a circle and a capsule are
+  // evaluated as rounded boxes, polygons and tapered capsules select without branching);
+  // the distance must not depend on which path computed it.
+  std::mt19937_64 rng(11);
+  std::uniform_real_distribution<double> u(-1.5, 1.5);
+  for (const json& j : kShapes) {
+    const ShapeTree s = shape(j);
+    for (int n = 0; n < 20000; ++n) {
+      const Vec2 p(u(rng), u(rng));
+      INFO(j.dump() << " at (" << p.x() << ", " << p.y() << ")");
+      REQUIRE(s.eval<false>(p).d == s.eval<true>(p).d);
+    }
+  }
+}
+
+TEST_CASE("circle and capsule as rounded boxes agree with their direct formulas") {
+  // circle: |p - c| - r, the same bits (rotation by the identity and a zero half size add
+  // nothing); capsule: |p - a - h (b - a)| - r with h = clamp((p - a).(b - a) / |b - a|^2,
+  // 0, 1), to rounding (the rounded-box form measures from the midpoint instead)
+  const ShapeTree circle = shape(kShapes[0]), capsule = shape(kShapes[3]);
+  const Vec2 c(0.1, -0.2), a(-0.5, 0.0), ab = Vec2(0.4, 0.3) - a;
+  std::mt19937_64 rng(12);
+  std::uniform_real_distribution<double> u(-1.5, 1.5);
+  for (int n = 0; n < 20000; ++n) {
+    const Vec2 p(u(rng), u(rng));
+    REQUIRE(circle.eval<false>(p).d == (p - c).norm() - 0.5);
+    const double h = std::clamp((p - a).dot(ab) / ab.squaredNorm(), 0.0, 1.0);
+    REQUIRE(capsule.eval<false>(p).d == Approx((p - a - h * ab).norm() - 0.1).margin(1e-15));
+  }
 }
 
 TEST_CASE("gradients match finite differences and are unit length") {
