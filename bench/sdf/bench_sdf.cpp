@@ -2,7 +2,8 @@
 // box2d backends on the same scenes in one run, with the ratio box2d / sdf.
 // Prints CSV: benchmark,backend,variant,balls,steps,repeats,median,unit,state_hash
 // then a comparison table: case,balls,steps,sdf_ns,box2d_ns,ratio_box2d_over_sdf.
-// Usage: bench_sdf [scene.json [--trace]]   (default: the source tree's configs/pinball.json)
+// Usage: bench_sdf [scene.json [--trace | --queries]]   (default: configs/pinball.json)
+// --trace prints the scene ball's contacts; --queries runs only the distance-query part.
 // Box2D runs with the scene's crosscheck.params.box2d if it has them, else with
 // curve_segments 256 (the pinball top) and the sdf backend's rest_speed.
 #include <cmath>
@@ -52,6 +53,7 @@ int main(int argc, char** argv) {
       gy = f["params"]["g"][1];
     }
   const double radius = scene["particles"][0]["radius"];
+  const double mass = scene["particles"][0].value("mass", 1.0);
   const json no_params = json::object();
   const json& sdf_params = scene.contains("backend") && scene["backend"].contains("params")
                                ? scene["backend"]["params"]
@@ -69,9 +71,9 @@ int main(int argc, char** argv) {
                                        scene["particles"][0]["x"][1]};
 
   if (argc > 2 && std::string(argv[2]) == "--trace") {
-    // the scene's ball: its contacts (time, obstacle id) and position every 0.25 s
-    BenchWorld<SdfBackend> w(scene, params_for<SdfBackend>(sdf_params), ball_x0, {0.0, 0.0},
-                             radius);
+    // the scene's ball: its contacts (time, obstacle id) and state every 0.25 s
+    BenchWorld<SdfBackend> w(scene, params_for<SdfBackend>(sdf_params), ball_x0, {0.0, 0.0}, radius,
+                             nullptr, mass);
     pinsim_event_sink sink{&w, [](void* c, const pinsim_event* e) {
                              const auto* wp = static_cast<BenchWorld<SdfBackend>*>(c);
                              std::printf("event t=%.4f obstacle=%s vn %.3f -> %.3f\n", e->t,
@@ -80,8 +82,8 @@ int main(int argc, char** argv) {
                            }};
     for (int s = 0; s < run_steps; ++s) {
       w.step(dt, gx, gy, &sink);
-      if (s % static_cast<int>(std::lround(0.25 / dt)) == 0)
-        std::printf("t=%.2f x=(%.4f, %.4f) v=(%.3f, %.3f)\n", w.t, w.x[0], w.x[1], w.v[0], w.v[1]);
+      if (w.steps % static_cast<uint64_t>(std::lround(0.25 / dt)) == 0)
+        std::printf("t=%.2f x=(%.9g, %.9g) v=(%.9g, %.9g)\n", w.t, w.x[0], w.x[1], w.v[0], w.v[1]);
     }
     const auto& st = w.be->stats();
     std::printf("steps %llu skipped %llu queries %llu contacts %llu cap_hits %llu\n",
@@ -142,6 +144,7 @@ int main(int argc, char** argv) {
           0, 0, 7, median(runs), "ns/query", h);
     }
   }
+  if (argc > 2 && std::string(argv[2]) == "--queries") return 0;
 
   // 2. ns per ball-step on both backends, same scene, dt and gravity: the scene's own ball
   // (plunger launch, flippers) for the full run, and 100 / 10,000 balls dropped at random
@@ -186,6 +189,7 @@ int main(int argc, char** argv) {
         v0.push_back(uv(rng));
       }
     }
+    const double ball_mass = c.balls == 1 ? mass : 1.0;  // the scene's own ball: its mass
     const json contacts = c.pairs ? json{{"particles", true}, {"restitution", 0.9}} : json(nullptr);
     const int steps = c.steps ? c.steps : run_steps;
     const double ball_steps = static_cast<double>(steps) * static_cast<double>(c.balls);
@@ -196,7 +200,7 @@ int main(int argc, char** argv) {
     for (int rep = 0; rep < c.repeats; ++rep) {
       {
         BenchWorld<SdfBackend> wb(scene, params_for<SdfBackend>(sdf_params), x0, v0, radius,
-                                  contacts);
+                                  contacts, ball_mass);
         const double t0 = cpu_ns();
         for (int s = 0; s < steps; ++s) wb.step(dt, gx, gy);
         sdf_runs.push_back((cpu_ns() - t0) / ball_steps);
@@ -207,7 +211,7 @@ int main(int argc, char** argv) {
       if (!note.empty()) continue;
       try {
         BenchWorld<Box2dBackend> wb(scene, params_for<Box2dBackend>(box2d_params), x0, v0, radius,
-                                    contacts);
+                                    contacts, ball_mass);
         const double t0 = cpu_ns();
         for (int s = 0; s < steps; ++s) wb.step(dt, gx, gy);
         box2d_runs.push_back((cpu_ns() - t0) / ball_steps);

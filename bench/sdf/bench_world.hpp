@@ -1,7 +1,10 @@
 // BenchWorld: particles of one radius and unit mass driven by uniform gravity through one
 // collision backend (SdfBackend or Box2dBackend, constructed directly from their impl
-// libraries), stepped as the framework's symplectic Euler does: kick v += dt g, then the
-// backend's advance. Plus the thread-CPU clock and the median the benchmarks report.
+// libraries), stepped with the same floating-point operations as the framework's symplectic
+// Euler with the gravity plugin: f = g / w, kick v += (dt w) f, then the backend's advance
+// from t = n dt (the step count times dt, as Simulation keeps it), so a scene's ball follows
+// the path `pinsim run` computes, bit for bit. Plus the thread-CPU clock and the median the
+// benchmarks report.
 #pragma once
 
 #include <time.h>
@@ -53,11 +56,14 @@ struct BenchWorld {
   std::vector<double> x, v, w, r;
   std::unique_ptr<B> be;
   double t = 0.0;
+  uint64_t steps = 0;
   uint64_t events = 0;
 
+  /// Particles of one radius and one mass (inverse mass w = 1 / mass).
   BenchWorld(const nlohmann::json& scene, const nlohmann::json& params, std::vector<double> x0,
-             std::vector<double> v0, double radius, const nlohmann::json& contacts = nullptr)
-      : x(std::move(x0)), v(std::move(v0)), w(x.size() / 2, 1.0), r(x.size() / 2, radius) {
+             std::vector<double> v0, double radius, const nlohmann::json& contacts = nullptr,
+             double mass = 1.0)
+      : x(std::move(x0)), v(std::move(v0)), w(x.size() / 2, 1.0 / mass), r(x.size() / 2, radius) {
     pinsim_state_view sv{w.size(), 0.0, x.data(), v.data(), w.data(), r.data()};
     nlohmann::json bs = backend_scene(scene);
     if (!contacts.is_null()) bs["contacts"] = contacts;
@@ -67,8 +73,9 @@ struct BenchWorld {
   /// One symplectic Euler step with gravity (gx, gy); `sink` receives the contact events.
   void step(double dt, double gx, double gy, const pinsim_event_sink* sink = nullptr) {
     for (std::size_t i = 0; i < w.size(); ++i) {
-      v[2 * i] += dt * gx;
-      v[2 * i + 1] += dt * gy;
+      const double hw = dt * w[i];
+      v[2 * i] += hw * (0.0 + gx / w[i]);
+      v[2 * i + 1] += hw * (0.0 + gy / w[i]);
     }
     pinsim_state_mut sm{w.size(), t, x.data(), v.data(), w.data(), r.data()};
     MutableState ms(sm);
@@ -76,7 +83,7 @@ struct BenchWorld {
         this, [](void* c, const pinsim_event*) { ++static_cast<BenchWorld*>(c)->events; }};
     EventSink es(sink ? sink : &count);
     be->advance(ms, dt, es);
-    t += dt;
+    t = static_cast<double>(++steps) * dt;
   }
   /// FNV-1a over the positions' bytes: a determinism check printed beside each figure.
   uint64_t hash() const {
