@@ -7,9 +7,10 @@
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
-BUILD=${1:-$ROOT/build/release}
+BUILD=$(cd "${1:-$ROOT/build/release}" && pwd -P)
 TMP=$(mktemp -d "${TMPDIR:-/tmp}/pinsim-sdk.XXXXXX")
 trap 'rm -rf "$TMP"' EXIT
+TMP=$(cd "$TMP" && pwd -P)  # as /proc/self/exe names it
 
 step() { echo "== $*"; }
 run_logged() {  # run a command quietly; on failure show its log and stop
@@ -30,6 +31,24 @@ PINSIM="$TMP/prefix/bin/pinsim"
 CONFIG=$(find "$TMP/prefix" -name pinsimConfig.cmake | head -n1)
 [ -n "$CONFIG" ] || { echo "pinsimConfig.cmake was not installed" >&2; exit 1; }
 PLUGINS=$(dirname "$(find "$TMP/prefix" -name 'libpinsim_plugin_gravity.so' | head -n1)")
+
+step "the installed pinsim loads the installed plugins (not the build tree's)"
+first_found() {  # the first path `pinsim plugins` lists for plugin $2 (the one loaded)
+  "$1" plugins | awk -v f="/libpinsim_plugin_$2.so" \
+    'substr($1, length($1) - length(f) + 1) == f && !n++ { print $1 }'
+}
+got=$(first_found "$PINSIM" gravity)
+[ "$got" = "$PLUGINS/libpinsim_plugin_gravity.so" ] || {
+  echo "the installed pinsim loads $got, not $PLUGINS/libpinsim_plugin_gravity.so" >&2
+  exit 1
+}
+step "a copy of the install moved elsewhere still finds its own plugins"
+cp -r "$TMP/prefix" "$TMP/moved"
+want="$TMP/moved${PLUGINS#"$TMP/prefix"}/libpinsim_plugin_sdf.so"
+got=$(first_found "$TMP/moved/bin/pinsim" sdf)
+[ "$got" = "$want" ] || { echo "the moved install loads $got, not $want" >&2; exit 1; }
+"$TMP/moved/bin/pinsim" -q run "$ROOT/configs/empty_box.json" --out "$TMP/moved_out"
+[ -s "$TMP/moved_out/trajectory.csv" ] || { echo "the moved install wrote no trajectory" >&2; exit 1; }
 
 step "build sdk/template_plugin out of tree against the installed SDK"
 cp -r "$ROOT/sdk/template_plugin" "$TMP/src"

@@ -21,17 +21,22 @@ std::vector<fs::path> plugin_search_dirs(const std::vector<fs::path>& scene_path
     while (std::getline(ss, item, ':'))
       if (!item.empty()) dirs.emplace_back(item);
   }
-  dirs.emplace_back(PINSIM_BUILD_PLUGIN_DIR);
-  // The install prefix: relative to the running program first, so a moved or copied install
-  // (a container image, an unpacked tarball) finds its own plugins, then the configured one.
+  // An installed program's own plugins, relative to it (so a moved or copied install, a
+  // container image or an unpacked tarball, finds its own), come before the build tree's: a
+  // build tree left on the machine must not override what was installed. A program in the
+  // build tree has no such directory beside it and gets the build tree's plugins.
   std::error_code ec;
   const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  fs::path rel;
   if (!ec) {
-    const fs::path rel = (exe.parent_path() / PINSIM_INSTALL_PLUGIN_RELDIR).lexically_normal();
-    if (fs::is_directory(rel, ec) && rel != fs::path(PINSIM_INSTALL_PLUGIN_DIR))
+    rel = (exe.parent_path() / PINSIM_INSTALL_PLUGIN_RELDIR).lexically_normal();
+    if (fs::is_directory(rel, ec))
       dirs.push_back(rel);
+    else
+      rel.clear();
   }
-  dirs.emplace_back(PINSIM_INSTALL_PLUGIN_DIR);
+  dirs.emplace_back(PINSIM_BUILD_PLUGIN_DIR);
+  if (rel != fs::path(PINSIM_INSTALL_PLUGIN_DIR)) dirs.emplace_back(PINSIM_INSTALL_PLUGIN_DIR);
   return dirs;
 }
 
