@@ -195,6 +195,22 @@ int run(const Options& o) {
     c.reference = cj.value("reference", json());
     if (c.answer.is_null() == c.reference.is_null())
       throw SceneError(cw + ": give exactly one of \"answer\" (closed form) or \"reference\"");
+    // a misspelt optional key (damping_ratio, floor, ...) would silently change the answer
+    const Loc at = Loc{where, "cases"}[ci];
+    if (c.answer.is_object()) {
+      const std::string type = c.answer.value("type", std::string());
+      if (type == "projectile")
+        check_keys(c.answer, {"type", "particle", "g"}, at / "answer");
+      else if (type == "harmonic")
+        check_keys(c.answer, {"type", "particle", "omega", "damping_ratio", "center"},
+                   at / "answer");
+      else if (type == "bouncing_ball")
+        check_keys(c.answer, {"type", "particle", "floor", "g", "restitution"}, at / "answer");
+      else if (type == "ball_in_box")
+        check_keys(c.answer, {"type", "particle", "min", "max"}, at / "answer");
+    }
+    if (c.reference.is_object())
+      check_keys(c.reference, {"integrator", "dt", "sample_every"}, at / "reference");
     const auto dts =
         sweep::numbers(cj.contains("dt") ? cj["dt"] : d.value("dt", json()), cw + ".dt");
     const auto integs = sweep::list_or(cj, d, "integrators", json::array({"symplectic_euler"}));

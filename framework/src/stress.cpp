@@ -210,6 +210,7 @@ int run(const Options& o) {
     if (c.kind == "stiffness") {
       if (!cj.contains("stiffness") || !cj["stiffness"].is_object())
         throw SceneError(cw + ".stiffness: expected {\"path\": ..., \"values\": [...]}");
+      check_keys(cj["stiffness"], {"path", "values"}, Loc{where, "cases"}[ci] / "stiffness");
       c.stiffness_path = cj["stiffness"].value("path", std::string());
       ks = sweep::numbers(cj["stiffness"].value("values", json()), cw + ".stiffness.values");
     } else if (c.kind == "tunnelling") {

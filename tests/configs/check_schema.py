@@ -1,12 +1,15 @@
-"""Checks configs/scene.schema.json against the shipped scenes and against broken ones.
+"""Checks configs/scene.schema.json against the shipped scenes and against broken ones, and
+configs/bench.schema.json and configs/stress.schema.json against the shipped bench and
+stress configs (their embedded scenes through the scene schema) and broken ones.
 
-Usage: check_schema.py CONFIGS_DIR. Exit 0 when every scene file validates and every
-deliberately broken scene is rejected; 1 otherwise (each failure printed).
+Usage: check_schema.py CONFIGS_DIR. Exit 0 when every file validates and every
+deliberately broken one is rejected; 1 otherwise (each failure printed).
 """
 import copy
 import glob
 import json
 import os
+import pathlib
 import sys
 
 import jsonschema
@@ -75,11 +78,81 @@ def main(configs):
         if validator.is_valid(scene):
             failures.append(f"the schema accepts a scene with an {what}")
 
+    swept, sweep_broken = check_sweeps(configs, schema, failures)
     for f in failures:
         print("FAIL", f)
     print(f"{len(scenes)} scenes validated, {len(broken)} broken scenes checked, "
+          f"{swept} bench/stress configs validated, {sweep_broken} broken ones checked, "
           f"{len(failures)} failures")
     return 1 if failures else 0
+
+
+def sweep_validator(configs, name, scene_schema):
+    """A validator for configs/NAME whose "$ref": "scene.schema.json" (relative, as an
+    editor resolves it) reaches the scene schema; works with jsonschema 4.10 (Debian
+    bookworm, RefResolver) and 4.18+ (referencing)."""
+    path = pathlib.Path(configs, name).resolve()
+    schema = dict(json.load(open(path)), **{"$id": path.as_uri()})
+    scene_uri = path.with_name("scene.schema.json").as_uri()
+    cls = jsonschema.validators.validator_for(schema)
+    try:
+        from referencing import Registry, Resource
+        res = Resource.from_contents(scene_schema)
+        registry = Registry().with_resources([(scene_uri, res), (scene_schema["$id"], res)])
+        return cls(schema, registry=registry)
+    except ImportError:
+        # (4.10 would take the scene schema's urn "$id" as the base of its "#/definitions"
+        # references, which urljoin cannot resolve against: the file URI serves instead)
+        scene = {k: v for k, v in scene_schema.items() if k != "$id"}
+        store = {scene_uri: scene}
+        return cls(schema, resolver=jsonschema.RefResolver.from_schema(schema, store=store))
+
+
+def check_sweeps(configs, scene_schema, failures):
+    validators = {kind: sweep_validator(configs, f"{kind}.schema.json", scene_schema)
+                  for kind in ("bench", "stress")}
+    docs = {}
+    for kind, v in validators.items():
+        for path in sorted(glob.glob(os.path.join(configs, kind, "*.json"))):
+            data = json.loads(strip_comments(open(path).read()))
+            docs[path] = data
+            for err in v.iter_errors(data):
+                failures.append(f"{path}: {'/'.join(map(str, err.absolute_path))}: {err.message}")
+    if len(docs) < 4:
+        failures.append(f"only {len(docs)} bench/stress configs found under {configs}")
+
+    bench = docs[os.path.join(configs, "bench", "integrators.json")]
+    springs = docs[os.path.join(configs, "stress", "springs.json")]
+    tunnel = docs[os.path.join(configs, "stress", "tunnelling.json")]
+
+    def harmonic(d):  # the first case with a harmonic answer
+        return next(c for c in d["cases"] if c.get("answer", {}).get("type") == "harmonic")
+
+    broken = [
+        ("bench", bench, "an unknown top-level key", lambda d: d.update({"repeat": 3})),
+        ("bench", bench, "a misspelt answer key",
+         lambda d: harmonic(d)["answer"].update({"damping": 0.1})),
+        ("bench", bench, "an unknown answer type",
+         lambda d: harmonic(d)["answer"].update({"type": "pendulum"})),
+        ("bench", bench, "both an answer and a reference",
+         lambda d: harmonic(d).update({"reference": {"dt": 1e-5}})),
+        ("bench", bench, "an unknown integrator", lambda d: d.update({"integrators": ["rk5"]})),
+        ("bench", bench, "a zero time step", lambda d: harmonic(d).update({"dt": [0.01, 0]})),
+        ("bench", bench, "an embedded scene with an unknown key",
+         lambda d: harmonic(d)["scene"].update({"gravty": 1})),
+        ("stress", springs, "a stiffness case without stiffness",
+         lambda d: d["cases"][0].pop("stiffness")),
+        ("stress", springs, "a stiffness with an unknown key",
+         lambda d: d["cases"][0]["stiffness"].update({"value": [1]})),
+        ("stress", tunnel, "a tunnelling case without speeds", lambda d: d["cases"][0].pop("speeds")),
+        ("stress", tunnel, "an unknown case kind", lambda d: d["cases"][0].update({"kind": "melt"})),
+    ]
+    for kind, base, what, change in broken:
+        doc = copy.deepcopy(base)
+        change(doc)
+        if validators[kind].is_valid(doc):
+            failures.append(f"the {kind} schema accepts a config with {what}")
+    return len(docs), len(broken)
 
 
 if __name__ == "__main__":

@@ -231,4 +231,12 @@ TEST_CASE("bench and stress configs: an unknown key is an error naming the file 
   CHECK(r.code == 2);
   CHECK_THAT(r.output, Catch::Contains("stress.json") && Catch::Contains("cases[0]") &&
                            Catch::Contains("displacement_limt"));
+  // inside an answer: "damping" for damping_ratio would silently compare with no damping
+  bench = kBench;
+  bench.replace(bench.find("\"omega\""), 7, "\"damping\": 0.1, \"omega\"");
+  pinsim::test::write_file(dir / "bench2.json", bench);
+  r = pinsim_cli("-q bench " + (dir / "bench2.json").string() + " --out " +
+                 (dir / "out3").string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output, Catch::Contains("cases[0].answer.damping"));
 }
