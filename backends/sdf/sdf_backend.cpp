@@ -367,6 +367,12 @@ bool same(const Vec2& a, const Vec2& b) { return a.x() == b.x() && a.y() == b.y(
 //   lower_bound(k, x_in) - reach - depth_min >= d_max   => nearest() skips k there, and
 //   ... - r - depth_min > (speed + U_k) dt                => k adds nothing to the bound
 // (depth_min is a margin against rounding, far above it).
+// A ball resting on a moving obstacle that stands still (a raised flipper, a stopped
+// plunger) cannot pass that test. Instead: in a step where no moving obstacle moves
+// (every speed bound over the step 0), each obstacle's distance, gradient and velocity (0)
+// come from its standing timeline segment and do not depend on the time, so the march is
+// a pure function of its input and of those segments. A record made in such a step is
+// replayed only in a step of the same still epoch (the same segments, nothing moving).
 bool SdfBackend::far_from_moving(const Rest& m) const {
   for (uint32_t k : field_.moving()) {
     const double lb = field_.lower_bound(k, m.x_in) - m.reach - delta_;
@@ -380,8 +386,16 @@ bool SdfBackend::far_from_moving(const Rest& m) const {
 void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   if (!(dt > 0.0)) return;
   const double t0 = s.t;
-  for (uint32_t k : field_.moving())
+  bool still = true, same_segments = still_;
+  still_segments_.resize(field_.size());
+  for (uint32_t k : field_.moving()) {
     speed_bound_[k] = field_.speed_bound(k, t0, t0 + dt, timeline_hint_[k]);
+    still = still && speed_bound_[k] == 0.0;
+    same_segments = same_segments && still_segments_[k] == timeline_hint_[k];
+    still_segments_[k] = timeline_hint_[k];
+  }
+  if (!(still && same_segments)) ++still_epoch_;
+  still_ = still;
   const bool pairs = particle_contacts_ && s.n > 1;
   if (pairs) schedule_pairs(s, dt, ev);
   if (rest_valid_.size() != s.n) {
@@ -413,8 +427,9 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
           break;
         }
       }
-      if (hit != nullptr && far_from_moving(*hit)) {
-        // at rest on static obstacles, with an input seen before: the same output
+      if (hit != nullptr &&
+          (hit->in_epoch ? still_ && hit->epoch == still_epoch_ : far_from_moving(*hit))) {
+        // at rest, with an input seen before and the same obstacles in reach: the same output
         add(stats_, hit->delta);
         ++stats_.replays;
         s.x.col(i) = hit->x_out;
@@ -427,13 +442,22 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
       probe.x0 = x;
       Budget b;
       march(i, x, v, r, t0, dt, b, ev, &probe);
-      if (probe.at_rest && probe.static_only) {
+      if (probe.at_rest && (probe.static_only || still_)) {
         const std::size_t j =
             hit != nullptr ? static_cast<std::size_t>(hit - &rest_[i * kRestSlots]) : rest_next_[i];
         if (hit == nullptr) rest_next_[i] = static_cast<uint8_t>((j + 1) % kRestSlots);
-        rest_[i * kRestSlots + j] = {
-            s.x.col(i),  s.v.col(i),     x, v, r, dt, std::sqrt(probe.reach), probe.d_max,
-            probe.speed, stats_ - before};
+        rest_[i * kRestSlots + j] = {s.x.col(i),
+                                     s.v.col(i),
+                                     x,
+                                     v,
+                                     r,
+                                     dt,
+                                     std::sqrt(probe.reach),
+                                     probe.d_max,
+                                     probe.speed,
+                                     stats_ - before,
+                                     still_epoch_,
+                                     !probe.static_only};
         rest_valid_[i] = static_cast<uint8_t>(rest_valid_[i] | 1u << j);
       } else {
         rest_valid_[i] = 0;

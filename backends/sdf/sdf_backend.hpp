@@ -56,13 +56,16 @@ class SdfBackend {
     bool static_only = true;  ///< every query's nearest obstacle static, no moving one near
     bool at_rest = false;     ///< ended at rest after one resting contact, no event
   };
-  /// A particle step that ended at rest on static obstacles: the same input gives the
-  /// same output as long as no moving obstacle can come near.
+  /// A particle step that ended at rest: the same input gives the same output as long as
+  /// no moving obstacle can come near (a record on static obstacles), or as long as every
+  /// moving obstacle stands still in the pose it had (a record in a still epoch).
   struct Rest {
     Vec2 x_in, v_in, x_out, v_out;
     double r = 0.0, dt = 0.0;
     double reach = 0.0, d_max = 0.0, speed = 0.0;
-    SdfStats delta;  ///< counters the step added
+    SdfStats delta;         ///< counters the step added
+    uint64_t epoch = 0;     ///< still_epoch_ of the step, if it relied on one
+    bool in_epoch = false;  ///< a moving obstacle was near: valid only in that epoch
   };
   /// Moves particle i from (x, v) at time t over `dur`; false if the caps stopped it early.
   bool march(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
@@ -86,6 +89,13 @@ class SdfBackend {
   double particle_e_ = 1.0;
   std::vector<double> speed_bound_;         ///< per obstacle, this step
   std::vector<std::size_t> timeline_hint_;  ///< per obstacle: its timeline's segment last step
+  /// Still epochs: a run of steps in which no moving obstacle moves, each in one pose (the
+  /// same timeline segments, hence the same angle or position and its cos/sin, to the bit).
+  /// still_ is true in such a step; still_epoch_ numbers the run and changes whenever a
+  /// step moves or the segments change, so equal numbers mean equal poses.
+  bool still_ = false;
+  uint64_t still_epoch_ = 0;
+  std::vector<std::size_t> still_segments_;
   std::vector<std::vector<Change>> changes_;
   /// Rest records per particle: a resting ball's position may cycle through a few values
   /// (rounding of the push back to the contact offset), so a few are kept.
