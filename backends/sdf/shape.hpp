@@ -47,6 +47,8 @@ struct Aabb {
   }
 };
 
+/// Order matters: the first four (up to kCapsule) share eval_box, primitives come before
+/// kUnion, and ShapeTree tests both by comparison.
 enum class ShapeType : uint8_t {
   kCircle,
   kBox,
