@@ -29,6 +29,25 @@ double triangle(double a, double b, double x0, double v, double t) {
   return a + (s <= len ? s : 2.0 * len - s);
 }
 
+/// One step of `a` (a backend that keeps its records between steps) and of a fresh backend
+/// from the previous fresh state `b` (which cannot replay anything): every particle's
+/// position and velocity must agree to the bit. `b` becomes the fresh state.
+void step_against_fresh(Sim& a, std::vector<Ball>& b, const json& scene, const json& par, double dt,
+                        const Vec2& g) {
+  Sim fresh(scene, b, par);
+  fresh.t = a.t;
+  fresh.step(dt, g);
+  a.step(dt, g);
+  for (std::size_t i = 0; i < b.size(); ++i) {
+    b[i].x = fresh.pos(i);
+    b[i].v = fresh.vel(i);
+    REQUIRE(a.pos(i).x() == b[i].x.x());
+    REQUIRE(a.pos(i).y() == b[i].x.y());
+    REQUIRE(a.vel(i).x() == b[i].v.x());
+    REQUIRE(a.vel(i).y() == b[i].v.y());
+  }
+}
+
 }  // namespace
 
 TEST_CASE("ball in an empty box with e = 1 follows the triangle wave, energy exact") {
@@ -412,20 +431,7 @@ TEST_CASE("replayed resting steps equal fresh ones, and a slider that can reach 
   const std::vector<Ball> start = {{Vec2(0, r), Vec2::Zero(), r}, {Vec2(0.8, r), Vec2::Zero(), r}};
   Sim a(scene, start, par);
   std::vector<Ball> b = start;
-  for (int n = 0; n < 600; ++n) {
-    Sim fresh(scene, b, par);
-    fresh.t = a.t;
-    fresh.step(dt, Vec2(0, -g));
-    a.step(dt, Vec2(0, -g));
-    for (std::size_t i = 0; i < 2; ++i) {
-      b[i].x = fresh.pos(i);
-      b[i].v = fresh.vel(i);
-      REQUIRE(a.pos(i).x() == b[i].x.x());
-      REQUIRE(a.pos(i).y() == b[i].x.y());
-      REQUIRE(a.vel(i).x() == b[i].v.x());
-      REQUIRE(a.vel(i).y() == b[i].v.y());
-    }
-  }
+  for (int n = 0; n < 600; ++n) step_against_fresh(a, b, scene, par, dt, Vec2(0, -g));
   // the second ball's steps are replays once its resting position has cycled through its
   // few rounding values; the first ball's never are (the slider can reach it)
   CHECK(a.backend->stats().replays >= 590);
@@ -470,18 +476,7 @@ TEST_CASE("resting on a moving obstacle that stands still is replayed, and stops
   uint64_t replays_at_release = 0;
   Vec2 rest0, rest1;
   for (int n = 0; n < 800; ++n) {
-    Sim fresh(scene, b, par);
-    fresh.t = a.t;
-    fresh.step(dt, Vec2(0, -g));
-    a.step(dt, Vec2(0, -g));
-    for (std::size_t i = 0; i < 2; ++i) {
-      b[i].x = fresh.pos(i);
-      b[i].v = fresh.vel(i);
-      REQUIRE(a.pos(i).x() == b[i].x.x());
-      REQUIRE(a.pos(i).y() == b[i].x.y());
-      REQUIRE(a.vel(i).x() == b[i].v.x());
-      REQUIRE(a.vel(i).y() == b[i].v.y());
-    }
+    step_against_fresh(a, b, scene, par, dt, Vec2(0, -g));
     if (n == 599) {
       replays_at_release = a.backend->stats().replays;
       rest0 = a.pos(0);
