@@ -326,19 +326,6 @@ Vec2 ObstacleField::velocity(std::size_t k, const Vec2& p, double t) const {
   return Vec2::Zero();
 }
 
-double ObstacleField::speed_bound(std::size_t k, double t0, double t1) const {
-  const Obstacle& o = obs_[k];
-  switch (o.motion) {
-    case MotionType::kStatic:
-      return 0.0;
-    case MotionType::kFlipper:
-      return o.timeline->max_rate(t0, t1) * o.reach;
-    case MotionType::kSlider:
-      return o.timeline->max_rate(t0, t1) * o.offset.norm();
-  }
-  return 0.0;
-}
-
 double ObstacleField::speed_bound(std::size_t k, double t0, double t1, std::size_t& hint) const {
   const Obstacle& o = obs_[k];
   switch (o.motion) {

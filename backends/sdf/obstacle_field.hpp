@@ -64,9 +64,8 @@ class ObstacleField {
   Vec2 velocity(std::size_t k, const Vec2& p, double t) const;
   /// Bound on how fast obstacle k's distance field can change at a fixed point over
   /// [t0, t1]: the largest speed of any of its points (the Hausdorff distance between two
-  /// poses bounds the change of the SDF).
-  double speed_bound(std::size_t k, double t0, double t1) const;
-  /// The same, with a search hint for times that advance step by step (0 at first).
+  /// poses bounds the change of the SDF). `hint` speeds up the timeline search for times
+  /// that advance step by step (0 at first; updated).
   double speed_bound(std::size_t k, double t0, double t1, std::size_t& hint) const;
   /// Where a point riding rigidly with obstacle k from time t0 ends at time t1.
   Vec2 carry(std::size_t k, const Vec2& p, double t0, double t1) const;

@@ -72,6 +72,7 @@ SdfBackend::SdfBackend(const CreateContext& ctx) {
   }
   speed_bound_.assign(field_.size(), 0.0);
   timeline_hint_.assign(field_.size(), 0);
+  still_segments_.assign(field_.size(), 0);
 }
 
 double SdfBackend::distance(const Vec2& p, double t, int64_t* obstacle) const {
@@ -387,7 +388,6 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   if (!(dt > 0.0)) return;
   const double t0 = s.t;
   bool still = true, same_segments = still_;
-  still_segments_.resize(field_.size());
   for (uint32_t k : field_.moving()) {
     speed_bound_[k] = field_.speed_bound(k, t0, t0 + dt, timeline_hint_[k]);
     still = still && speed_bound_[k] == 0.0;

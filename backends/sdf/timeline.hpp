@@ -60,14 +60,8 @@ class Timeline {
   }
   /// Rate of change at time t (the segment starting at or before t).
   double rate(double t) const { return at(t).slope; }
-  /// Largest |rate| over [t0, t1].
-  double max_rate(double t0, double t1) const {
-    double m = 0.0;
-    for (std::size_t k = index(t0); k < seg_.size() && seg_[k].t <= t1; ++k)
-      m = std::max(m, std::abs(seg_[k].slope));
-    return m;
-  }
-  /// The same, starting the search at segment `hint` (updated), for times that advance.
+  /// Largest |rate| over [t0, t1], starting the search at segment `hint` (updated), for
+  /// times that advance.
   double max_rate(double t0, double t1, std::size_t& hint) const {
     if (!(hint < seg_.size() && seg_[hint].t <= t0 &&
           (hint + 1 == seg_.size() || t0 < seg_[hint + 1].t)))
