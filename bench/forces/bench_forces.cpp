@@ -16,8 +16,8 @@
 #include <string>
 #include <vector>
 
-#include "param_validation.hpp"
-#include "plugin_loader.hpp"
+#include "core/param_validation.hpp"
+#include "core/plugin_loader.hpp"
 
 namespace {
 

@@ -4,7 +4,7 @@
 #include <string>
 #include <vector>
 
-#include "scene.hpp"
+#include "core/scene.hpp"
 
 namespace pinsim::cli {
 

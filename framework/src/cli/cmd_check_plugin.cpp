@@ -5,9 +5,9 @@
 #include <vector>
 
 #include "commands.hpp"
-#include "plugin_check.hpp"
-#include "plugin_loader.hpp"
-#include "scene_error.hpp"
+#include "core/plugin_loader.hpp"
+#include "core/scene_error.hpp"
+#include "tools/plugin_check.hpp"
 
 namespace pinsim::cli {
 

@@ -10,7 +10,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "crosscheck.hpp"
+#include "tools/crosscheck.hpp"
 
 namespace pinsim::cli {
 namespace {

@@ -12,8 +12,8 @@
 #include <memory>
 
 #include "commands.hpp"
-#include "grader.hpp"
-#include "scene_error.hpp"
+#include "core/scene_error.hpp"
+#include "grading/grader.hpp"
 
 namespace fs = std::filesystem;
 

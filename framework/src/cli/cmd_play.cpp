@@ -14,9 +14,9 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "play_game.hpp"
-#include "render.hpp"
-#include "render_field.hpp"
+#include "pictures/play_game.hpp"
+#include "pictures/render.hpp"
+#include "pictures/render_field.hpp"
 
 namespace pinsim::cli {
 namespace {

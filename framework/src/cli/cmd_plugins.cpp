@@ -3,8 +3,8 @@
 #include <memory>
 
 #include "commands.hpp"
-#include "param_validation.hpp"
-#include "plugin_loader.hpp"
+#include "core/param_validation.hpp"
+#include "core/plugin_loader.hpp"
 
 namespace pinsim::cli {
 

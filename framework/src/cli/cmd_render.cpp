@@ -7,7 +7,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "render.hpp"
+#include "pictures/render.hpp"
 
 namespace pinsim::cli {
 namespace {

@@ -5,7 +5,7 @@
 #include <memory>
 
 #include "commands.hpp"
-#include "replay.hpp"
+#include "pictures/replay.hpp"
 
 namespace pinsim::cli {
 namespace {

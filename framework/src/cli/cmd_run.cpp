@@ -10,7 +10,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "runner.hpp"
+#include "core/runner.hpp"
 
 namespace pinsim::cli {
 namespace {

@@ -2,7 +2,7 @@
 #include <memory>
 
 #include "commands.hpp"
-#include "stress.hpp"
+#include "tools/stress.hpp"
 
 namespace pinsim::cli {
 namespace {

@@ -5,7 +5,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
-#include "simulation.hpp"
+#include "core/simulation.hpp"
 
 namespace pinsim::cli {
 

@@ -9,7 +9,8 @@ void add_run_command(CLI::App& app);
 void add_validate_command(CLI::App& app);
 void add_plugins_command(CLI::App& app);
 void add_check_plugin_command(CLI::App& app);
-void add_bench_command(CLI::App& app);  ///< bench and merge
+void add_bench_command(CLI::App& app);
+void add_merge_command(CLI::App& app);
 void add_stress_command(CLI::App& app);
 void add_crosscheck_command(CLI::App& app);
 void add_render_command(CLI::App& app);

@@ -5,9 +5,9 @@
 #include <iostream>
 
 #include "commands.hpp"
-#include "plugin_instance.hpp"
-#include "plugin_loader.hpp"
-#include "scene_error.hpp"
+#include "core/plugin_instance.hpp"
+#include "core/plugin_loader.hpp"
+#include "core/scene_error.hpp"
 
 int main(int argc, char** argv) {
   auto logger = spdlog::stderr_color_mt("pinsim");
@@ -32,6 +32,7 @@ int main(int argc, char** argv) {
   pinsim::cli::add_plugins_command(app);
   pinsim::cli::add_check_plugin_command(app);
   pinsim::cli::add_bench_command(app);
+  pinsim::cli::add_merge_command(app);
   pinsim::cli::add_stress_command(app);
   pinsim::cli::add_crosscheck_command(app);
   pinsim::cli::add_render_command(app);

@@ -4,9 +4,9 @@
 #include <cmath>
 #include <string>
 
-#include "crosscheck.hpp"
+#include "core/simulation.hpp"
 #include "shape_builder.hpp"
-#include "simulation.hpp"
+#include "tools/crosscheck.hpp"
 
 using namespace pinsim;
 using Catch::Matchers::Contains;

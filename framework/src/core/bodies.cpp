@@ -1,0 +1,253 @@
+#include "core/bodies.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+#include <utility>
+
+#include "core/json_read.hpp"
+#include "core/scene_error.hpp"
+
+namespace pinsim {
+
+namespace {
+
+using Eigen::Vector2d;
+
+/// "file.json: bodies[1]" -> Loc{file.json, bodies[1]}.
+Loc split_where(const std::string& where) {
+  const auto c = where.find(": ");
+  if (c == std::string::npos) return {where, ""};
+  return {where.substr(0, c), where.substr(c + 2)};
+}
+
+/// The particle options every body shares.
+struct ParticleOptions {
+  double inv_mass = 1.0;
+  double radius = 0.05;
+  Vector2d velocity = Vector2d::Zero();
+  bool all_pinned = false;
+  std::set<uint64_t> pinned;  ///< local indices
+};
+
+/// Reads mass | total_mass, radius, velocity, pinned (bool) and pin (local indices).
+ParticleOptions read_particle_options(const nlohmann::json& spec, uint64_t count, const Loc& at) {
+  ParticleOptions o;
+  if (spec.contains("mass") && spec.contains("total_mass"))
+    throw(at / "total_mass").error("give either mass (per particle) or total_mass, not both");
+  double m = 1.0;
+  if (spec.contains("total_mass"))
+    m = read_number(spec, "total_mass", at) / static_cast<double>(count);
+  else
+    m = read_number_or(spec, "mass", 1.0, at);
+  if (!(m > 0.0) || !std::isfinite(m))
+    throw(at / (spec.contains("total_mass") ? "total_mass" : "mass"))
+        .error("must be > 0 (kg), got " + std::to_string(m));
+  o.inv_mass = 1.0 / m;
+  o.radius = read_number_or(spec, "radius", 0.05, at);
+  if (!(o.radius >= 0.0)) throw(at / "radius").error("must be >= 0 (scene units)");
+  o.velocity = read_vec2_or(spec, "velocity", Vector2d::Zero(), at);
+  o.all_pinned = read_bool_or(spec, "pinned", false, at);
+  if (spec.contains("pin")) {
+    const auto& p = spec["pin"];
+    if (!p.is_array())
+      throw(at / "pin").error("expected a list of particle indices, " + describe(p));
+    for (std::size_t i = 0; i < p.size(); ++i) {
+      if (!p[i].is_number_integer() || p[i].get<int64_t>() < 0 || p[i].get<uint64_t>() >= count)
+        throw(at / "pin")[i].error("expected a particle index 0.." + std::to_string(count - 1) +
+                                   ", " + describe(p[i]));
+      o.pinned.insert(p[i].get<uint64_t>());
+    }
+  }
+  return o;
+}
+
+uint32_t add_particle(ParticleList& out, const Vector2d& x, const ParticleOptions& o,
+                      uint64_t local) {
+  const bool pinned = o.all_pinned || o.pinned.count(local) > 0;
+  return out.add(x, pinned ? Vector2d::Zero() : o.velocity, pinned ? 0.0 : o.inv_mass, o.radius);
+}
+
+void add_pair(ElementSet& s, uint32_t a, uint32_t b) { s.indices.insert(s.indices.end(), {a, b}); }
+void add_triple(ElementSet& s, uint32_t a, uint32_t b, uint32_t c) {
+  s.indices.insert(s.indices.end(), {a, b, c});
+}
+
+ElementSet particle_set(uint32_t first, uint32_t count) {
+  ElementSet s{1, {}};
+  for (uint32_t i = 0; i < count; ++i) s.indices.push_back(first + i);
+  return s;
+}
+
+uint64_t read_count_min(const nlohmann::json& spec, const char* key, uint64_t def, uint64_t min,
+                        const Loc& at) {
+  const uint64_t n = read_count_or(spec, key, def, at);
+  if (n < min || n > 1000000)
+    throw(at / key).error("must be between " + std::to_string(min) + " and 1000000, got " +
+                          std::to_string(n));
+  return n;
+}
+
+/// ring_blob: count particles on a circle. Sets: particles, edges (ring neighbours),
+/// cross (across the ring, i to i + count/2), shear (i to i + 2), triples (i-1, i, i+1).
+Body ring_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
+  check_keys(spec,
+             {"type", "name", "center", "ring_radius", "count", "cross", "shear", "mass",
+              "total_mass", "radius", "velocity", "pinned", "pin", "angle"},
+             at);
+  const Vector2d c =
+      read_vec2(spec.contains("center") ? spec["center"] : nlohmann::json(), at / "center");
+  const double rr = read_number_or(spec, "ring_radius", 1.0, at);
+  if (!(rr > 0.0)) throw(at / "ring_radius").error("must be > 0 (scene units)");
+  const uint64_t n = read_count_min(spec, "count", 16, 3, at);
+  const double a0 = read_number_or(spec, "angle", 0.0, at);
+  const ParticleOptions o = read_particle_options(spec, n, at);
+  Body b;
+  b.first = static_cast<uint32_t>(out.size());
+  b.count = static_cast<uint32_t>(n);
+  for (uint64_t i = 0; i < n; ++i) {
+    const double th = a0 + 2.0 * M_PI * static_cast<double>(i) / static_cast<double>(n);
+    add_particle(out, c + rr * Vector2d(std::cos(th), std::sin(th)), o, i);
+  }
+  const uint32_t f = b.first, m = b.count;
+  auto g = [f, m](uint64_t i) { return f + static_cast<uint32_t>(i % m); };
+  b.sets["particles"] = particle_set(f, m);
+  ElementSet edges{2, {}}, tri{3, {}};
+  for (uint32_t i = 0; i < m; ++i) {
+    add_pair(edges, g(i), g(i + 1));
+    add_triple(tri, g(i + m - 1), g(i), g(i + 1));
+  }
+  b.sets["edges"] = edges;
+  b.sets["triples"] = tri;
+  if (read_bool_or(spec, "cross", true, at) && m >= 4) {
+    ElementSet cross{2, {}};
+    const uint32_t h = m / 2;
+    for (uint32_t i = 0; i < (m % 2 == 0 ? h : m); ++i) add_pair(cross, g(i), g(i + h));
+    b.sets["cross"] = cross;
+  }
+  if (read_bool_or(spec, "shear", true, at) && m >= 5) {
+    ElementSet shear{2, {}};
+    for (uint32_t i = 0; i < m; ++i) add_pair(shear, g(i), g(i + 2));
+    b.sets["shear"] = shear;
+  }
+  return b;
+}
+
+/// grid_blob: nx by ny particles from origin (lower left), spacing apart. Sets: particles,
+/// edges (rows and columns), shear (both cell diagonals), bend (i to i+2 along rows and
+/// columns), triples (straight triples along rows and columns).
+Body grid_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
+  check_keys(spec,
+             {"type", "name", "origin", "nx", "ny", "spacing", "mass", "total_mass", "radius",
+              "velocity", "pinned", "pin"},
+             at);
+  const Vector2d o0 = read_vec2_or(spec, "origin", Vector2d::Zero(), at);
+  const uint64_t nx = read_count_min(spec, "nx", 4, 2, at),
+                 ny = read_count_min(spec, "ny", 4, 2, at);
+  const double h = read_number_or(spec, "spacing", 0.1, at);
+  if (!(h > 0.0)) throw(at / "spacing").error("must be > 0 (scene units)");
+  const ParticleOptions o = read_particle_options(spec, nx * ny, at);
+  Body b;
+  b.first = static_cast<uint32_t>(out.size());
+  b.count = static_cast<uint32_t>(nx * ny);
+  for (uint64_t j = 0; j < ny; ++j)
+    for (uint64_t i = 0; i < nx; ++i)
+      add_particle(out, o0 + h * Vector2d(static_cast<double>(i), static_cast<double>(j)), o,
+                   j * nx + i);
+  auto id = [&](uint64_t i, uint64_t j) { return b.first + static_cast<uint32_t>(j * nx + i); };
+  ElementSet edges{2, {}}, shear{2, {}}, bend{2, {}}, tri{3, {}};
+  for (uint64_t j = 0; j < ny; ++j)
+    for (uint64_t i = 0; i < nx; ++i) {
+      if (i + 1 < nx) add_pair(edges, id(i, j), id(i + 1, j));
+      if (j + 1 < ny) add_pair(edges, id(i, j), id(i, j + 1));
+      if (i + 1 < nx && j + 1 < ny) {
+        add_pair(shear, id(i, j), id(i + 1, j + 1));
+        add_pair(shear, id(i + 1, j), id(i, j + 1));
+      }
+      if (i + 2 < nx) {
+        add_pair(bend, id(i, j), id(i + 2, j));
+        add_triple(tri, id(i, j), id(i + 1, j), id(i + 2, j));
+      }
+      if (j + 2 < ny) {
+        add_pair(bend, id(i, j), id(i, j + 2));
+        add_triple(tri, id(i, j), id(i, j + 1), id(i, j + 2));
+      }
+    }
+  b.sets["particles"] = particle_set(b.first, b.count);
+  b.sets["edges"] = edges;
+  b.sets["shear"] = shear;
+  if (!bend.indices.empty()) b.sets["bend"] = bend;
+  if (!tri.indices.empty()) b.sets["triples"] = tri;
+  return b;
+}
+
+/// strand: a chain of count particles from root along direction, segment_length apart (or
+/// length in total); the root is pinned (inverse mass 0) unless pin_root is false. Sets:
+/// particles, edges (i, i+1), triples (i, i+1, i+2).
+Body strand(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
+  check_keys(spec,
+             {"type", "name", "root", "direction", "count", "segment_length", "length", "pin_root",
+              "mass", "total_mass", "radius", "velocity", "pinned", "pin"},
+             at);
+  const Vector2d root =
+      read_vec2(spec.contains("root") ? spec["root"] : nlohmann::json(), at / "root");
+  Vector2d d = read_vec2_or(spec, "direction", Vector2d(0, -1), at);
+  if (!(d.norm() > 0.0)) throw(at / "direction").error("must be a non-zero vector");
+  d.normalize();
+  const uint64_t n = read_count_min(spec, "count", 10, 2, at);
+  if (spec.contains("segment_length") && spec.contains("length"))
+    throw(at / "length").error("give either segment_length or length, not both");
+  const double seg = spec.contains("length")
+                         ? read_number(spec, "length", at) / static_cast<double>(n - 1)
+                         : read_number_or(spec, "segment_length", 0.1, at);
+  if (!(seg > 0.0))
+    throw(at / (spec.contains("length") ? "length" : "segment_length"))
+        .error("must be > 0 (scene units)");
+  ParticleOptions o = read_particle_options(spec, n, at);
+  if (read_bool_or(spec, "pin_root", true, at)) o.pinned.insert(0);
+  Body b;
+  b.first = static_cast<uint32_t>(out.size());
+  b.count = static_cast<uint32_t>(n);
+  for (uint64_t i = 0; i < n; ++i) add_particle(out, root + seg * static_cast<double>(i) * d, o, i);
+  ElementSet edges{2, {}}, tri{3, {}};
+  for (uint32_t i = 0; i + 1 < b.count; ++i) add_pair(edges, b.first + i, b.first + i + 1);
+  for (uint32_t i = 0; i + 2 < b.count; ++i)
+    add_triple(tri, b.first + i, b.first + i + 1, b.first + i + 2);
+  b.sets["particles"] = particle_set(b.first, b.count);
+  b.sets["edges"] = edges;
+  if (!tri.indices.empty()) b.sets["triples"] = tri;
+  return b;
+}
+
+using Builder = Body (*)(const nlohmann::json&, const Loc&, ParticleList&);
+const std::vector<std::pair<std::string, Builder>>& builders() {
+  static const std::vector<std::pair<std::string, Builder>> b = {
+      {"ring_blob", &ring_blob}, {"grid_blob", &grid_blob}, {"strand", &strand}};
+  return b;
+}
+
+}  // namespace
+
+std::vector<std::string> body_types() {
+  std::vector<std::string> out;
+  for (const auto& [name, _] : builders()) out.push_back(name);
+  return out;
+}
+
+Body build_body(const nlohmann::json& spec, const std::string& where, ParticleList& particles) {
+  const Loc at = split_where(where);
+  require_object(spec, at);
+  const std::string type = read_string_or(spec, "type", "", at);
+  for (const auto& [name, fn] : builders()) {
+    if (name != type) continue;
+    Body b = fn(spec, at, particles);
+    b.type = type;
+    b.name = read_string_or(spec, "name", type, at);
+    return b;
+  }
+  std::string known;
+  for (const auto& t : body_types()) known += (known.empty() ? "" : ", ") + t;
+  throw(at / "type").error("unknown body type '" + type + "' (known: " + known + ")");
+}
+
+}  // namespace pinsim

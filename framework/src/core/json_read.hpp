@@ -1,0 +1,50 @@
+// Typed reading of JSON values with locations, so every error names the file and JSON path.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <initializer_list>
+#include <nlohmann/json.hpp>
+#include <string>
+
+#include "core/scene_error.hpp"
+
+namespace pinsim {
+
+/// A location in a JSON file: "scene.json: forces[2].params.k".
+struct Loc {
+  std::string file;
+  std::string path;
+  Loc operator/(const std::string& key) const {
+    return {file, path.empty() ? key : path + "." + key};
+  }
+  Loc operator[](std::size_t i) const { return {file, path + "[" + std::to_string(i) + "]"}; }
+  std::string str() const { return file + ": " + (path.empty() ? "(top level)" : path); }
+  /// A SceneError at this location: "<file>: <path>: <what>".
+  SceneError error(const std::string& what) const { return SceneError(str() + ": " + what); }
+};
+
+/// "got <type> <value>" for messages.
+std::string describe(const nlohmann::json& v);
+
+/// Throws unless j is an object.
+void require_object(const nlohmann::json& j, const Loc& at);
+/// Throws at the first key of obj that is not in `allowed`, listing the allowed ones.
+void check_keys(const nlohmann::json& obj, std::initializer_list<const char*> allowed,
+                const Loc& at);
+
+double read_number(const nlohmann::json& obj, const char* key, const Loc& at);
+double read_number_or(const nlohmann::json& obj, const char* key, double def, const Loc& at);
+Eigen::Vector2d read_vec2(const nlohmann::json& v, const Loc& at);
+Eigen::Vector2d read_vec2_or(const nlohmann::json& obj, const char* key, const Eigen::Vector2d& def,
+                             const Loc& at);
+std::string read_string_or(const nlohmann::json& obj, const char* key, const std::string& def,
+                           const Loc& at);
+bool read_bool_or(const nlohmann::json& obj, const char* key, bool def, const Loc& at);
+/// A non-negative integer.
+uint64_t read_count_or(const nlohmann::json& obj, const char* key, uint64_t def, const Loc& at);
+
+/// Parses JSON text with comments allowed; a syntax error names file:line:column.
+nlohmann::json parse_json_text(const std::string& text, const std::string& label);
+
+}  // namespace pinsim

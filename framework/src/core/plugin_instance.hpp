@@ -1,0 +1,78 @@
+// Live plugin instances: a created object plus the library that must outlive it.
+#pragma once
+
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <pinsim/state.hpp>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "core/plugin_loader.hpp"
+
+namespace pinsim {
+
+/// A plugin call failed (it returned an error code); the message names the plugin.
+class PluginError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// Arguments for creating an instance.
+struct InstanceArgs {
+  nlohmann::json params;           ///< validated, defaults filled
+  nlohmann::json scene;            ///< backends only
+  std::vector<uint32_t> elements;  ///< forces only
+  std::string context;             ///< "scene.json: forces[2]"
+};
+
+class ForceInstance {
+ public:
+  ForceInstance(std::shared_ptr<const LoadedPlugin> plugin, const State& initial,
+                InstanceArgs args);
+  ~ForceInstance();
+  ForceInstance(const ForceInstance&) = delete;
+  ForceInstance& operator=(const ForceInstance&) = delete;
+
+  void add_force(const pinsim_state_view& s, double* f) const;
+  bool has_energy() const { return plugin_->table->force.energy != nullptr; }
+  double energy(const pinsim_state_view& s) const;
+  bool has_jacobians() const { return plugin_->table->force.add_jacobians != nullptr; }
+  void add_jacobians(const pinsim_state_view& s, const pinsim_triplet_sink* dfdx,
+                     const pinsim_triplet_sink* dfdv) const;
+
+  const LoadedPlugin& plugin() const { return *plugin_; }
+  const std::string& context() const { return context_; }
+  const std::vector<uint32_t>& elements() const { return elements_; }
+
+ private:
+  [[noreturn]] void fail(const char* what) const;
+  std::shared_ptr<const LoadedPlugin> plugin_;
+  void* self_ = nullptr;
+  std::string context_;
+  std::vector<uint32_t> elements_;
+  mutable std::vector<char> err_;
+};
+
+class BackendInstance {
+ public:
+  BackendInstance(std::shared_ptr<const LoadedPlugin> plugin, const State& initial,
+                  InstanceArgs args);
+  ~BackendInstance();
+  BackendInstance(const BackendInstance&) = delete;
+  BackendInstance& operator=(const BackendInstance&) = delete;
+
+  void advance(State& s, double dt, const pinsim_event_sink* events);
+  bool has_distance() const { return plugin_->table->backend.distance != nullptr; }
+  double distance(double x, double y, double t, int64_t* obstacle) const;
+  const LoadedPlugin& plugin() const { return *plugin_; }
+
+ private:
+  [[noreturn]] void fail(const char* what) const;
+  std::shared_ptr<const LoadedPlugin> plugin_;
+  void* self_ = nullptr;
+  std::string context_;
+  mutable std::vector<char> err_;
+};
+
+}  // namespace pinsim

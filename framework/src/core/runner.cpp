@@ -1,0 +1,115 @@
+#include "core/runner.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <memory>
+
+#include "core/recorder.hpp"
+
+namespace pinsim {
+
+RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings& settings) {
+  Simulation sim(scene, loader, settings.options);
+  std::unique_ptr<Recorder> rec;
+  if (settings.out) rec = std::make_unique<Recorder>(*settings.out, scene, settings.overwrite);
+
+  nlohmann::json plugins = nlohmann::json::object();
+  plugins[sim.backend().plugin().name()] = sim.backend().plugin().table->version;
+  for (const auto& f : sim.forces()) plugins[f->plugin().name()] = f->plugin().table->version;
+
+  nlohmann::json summary = {
+      {"status", "running"},
+      {"scene", scene.label},
+      {"scene_dir", std::filesystem::absolute(scene.base_dir).string()},
+      {"name", scene.name},
+      {"backend", sim.backend().plugin().name()},
+      {"integrator", sim.integrator_name()},
+      {"dt", scene.dt},
+      {"duration", scene.duration},
+      {"particles", sim.state().size()},
+      {"versions", {{"pinsim", PINSIM_VERSION}, {"plugins", plugins}}},
+  };
+  if (rec) {
+    rec->write_summary(summary);
+    rec->write_state(sim.state());
+  }
+
+  const uint64_t steps = scene.steps();
+  const auto start = std::chrono::steady_clock::now();
+  auto last_progress = start;
+  RunResult result;
+  std::string status = "ok";
+  uint64_t contacts = 0;
+  try {
+    for (uint64_t n = 0; n < steps; ++n) {
+      if (settings.stop && settings.stop->load(std::memory_order_relaxed)) {
+        status = "interrupted";
+        result.exit_code = 130;
+        break;
+      }
+      sim.events().clear();
+      sim.step();
+      contacts += sim.events().size();
+      if (rec) {
+        if (!sim.events().empty()) rec->write_events(sim.events());
+        if (sim.step_index() % scene.output_every == 0 || n + 1 == steps)
+          rec->write_state(sim.state());
+      }
+      if (settings.progress && (n & 255) == 0) {
+        const auto now = std::chrono::steady_clock::now();
+        if (now - last_progress > std::chrono::milliseconds(200)) {
+          last_progress = now;
+          settings.progress(static_cast<double>(n) / static_cast<double>(steps), sim);
+        }
+      }
+    }
+  } catch (const NumericError& e) {
+    status = "error";
+    result.exit_code = 1;
+    summary["error"] = {{"kind", "numeric"},
+                        {"message", e.what()},
+                        {"step", e.step},
+                        {"t", e.t},
+                        {"particle", e.particle}};
+    spdlog::error("{}: step {} (t = {}), particle {}: {}", scene.label, e.step, e.t, e.particle,
+                  e.what());
+  } catch (const std::exception& e) {
+    status = "error";
+    result.exit_code = 1;
+    summary["error"] = {{"kind", "plugin"},
+                        {"message", e.what()},
+                        {"step", sim.step_index() + 1},
+                        {"t", sim.state().t}};
+    spdlog::error("{}: step {} (t = {}): {}", scene.label, sim.step_index() + 1, sim.state().t,
+                  e.what());
+  }
+  if (rec && !sim.events().empty() && status != "ok") rec->write_events(sim.events());
+  const double wall =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  // Energy at the end (guarded: the state may be non-finite after a failure).
+  double e_end = 0.0;
+  try {
+    e_end = sim.kinetic_energy(sim.state()) + sim.potential_energy(sim.state());
+  } catch (const std::exception&) {
+    e_end = std::nan("");
+  }
+  summary["status"] = status;
+  summary["steps"] = sim.step_index();
+  summary["t_end"] = sim.state().t;
+  summary["wall_time_s"] = wall;
+  summary["contacts"] = contacts;
+  summary["force_evaluations"] = sim.force_evaluations();
+  summary["energy"] = {{"start", sim.energy_start()},
+                       {"end", std::isfinite(e_end) ? nlohmann::json(e_end) : nlohmann::json()},
+                       {"max_relative_drift", sim.max_energy_drift()},
+                       {"checked_every_steps", scene.energy_every},
+                       {"complete", sim.energy_complete()}};
+  summary["state_hash"] = fmt::format("{:016x}", sim.state().hash());
+  if (rec) rec->write_summary(summary);
+  result.summary = std::move(summary);
+  return result;
+}
+
+}  // namespace pinsim

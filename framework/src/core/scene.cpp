@@ -1,0 +1,333 @@
+#include "core/scene.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "core/json_read.hpp"
+
+namespace fs = std::filesystem;
+
+namespace pinsim {
+namespace {
+
+// Splits "forces[0].params.k" or "forces.0.params.k" into keys and indices.
+std::vector<std::string> split_path(const std::string& path) {
+  std::vector<std::string> out;
+  std::string cur;
+  for (char c : path) {
+    if (c == '.' || c == '[' || c == ']') {
+      if (!cur.empty()) out.push_back(cur);
+      cur.clear();
+    } else {
+      cur += c;
+    }
+  }
+  if (!cur.empty()) out.push_back(cur);
+  return out;
+}
+
+bool is_index(const std::string& s) {
+  return !s.empty() && s.find_first_not_of("0123456789") == std::string::npos;
+}
+
+PluginRef read_plugin_ref(const nlohmann::json& j, const Loc& at, const char* name_key) {
+  PluginRef r;
+  r.where = at.str();
+  r.name = read_string_or(j, name_key, "", at);
+  if (r.name.empty()) throw(at / name_key).error("required plugin name is missing");
+  r.library = read_string_or(j, "library", "", at);
+  r.params = j.contains("params") ? j.at("params") : nlohmann::json::object();
+  if (!r.params.is_object())
+    throw(at / "params").error("expected an object, " + describe(r.params));
+  return r;
+}
+
+void read_particles(const nlohmann::json& list, const Loc& at, ParticleList& out) {
+  if (!list.is_array()) throw at.error("expected an array of particles, " + describe(list));
+  for (std::size_t i = 0; i < list.size(); ++i) {
+    const auto& p = list[i];
+    const Loc pl = at[i];
+    require_object(p, pl);
+    check_keys(p, {"name", "x", "v", "mass", "radius", "pinned"}, pl);
+    if (!p.contains("x")) throw(pl / "x").error("required position [x, y] is missing");
+    const Eigen::Vector2d x = read_vec2(p.at("x"), pl / "x");
+    const Eigen::Vector2d v = read_vec2_or(p, "v", Eigen::Vector2d::Zero(), pl);
+    const bool pinned = read_bool_or(p, "pinned", false, pl);
+    const double mass = read_number_or(p, "mass", 1.0, pl);
+    if (!(mass > 0.0)) throw(pl / "mass").error("must be > 0, got " + p.at("mass").dump());
+    const double radius = read_number_or(p, "radius", 0.0, pl);
+    if (!(radius >= 0.0)) throw(pl / "radius").error("must be >= 0, got " + p.at("radius").dump());
+    out.add(x, v, pinned ? 0.0 : 1.0 / mass, radius);
+  }
+}
+
+}  // namespace
+
+void apply_override(nlohmann::json& doc, const std::string& assignment, const std::string& label) {
+  const auto eq = assignment.find('=');
+  if (eq == std::string::npos || eq == 0)
+    throw SceneError("--set " + assignment + ": expected PATH=VALUE, e.g. time.dt=0.0005");
+  const std::string path = assignment.substr(0, eq);
+  const std::string text = assignment.substr(eq + 1);
+  nlohmann::json value;
+  try {
+    value = nlohmann::json::parse(text);
+  } catch (const nlohmann::json::parse_error&) {
+    value = text;  // a bare word is a string
+  }
+  const auto keys = split_path(path);
+  if (keys.empty()) throw SceneError("--set " + assignment + ": empty path");
+  nlohmann::json* cur = &doc;
+  std::string walked;
+  for (std::size_t k = 0; k < keys.size(); ++k) {
+    const std::string& key = keys[k];
+    const bool last = k + 1 == keys.size();
+    if (cur->is_array()) {
+      if (!is_index(key) || std::stoul(key) >= cur->size())
+        throw SceneError(label + ": --set " + path + ": " + walked + " has " +
+                         std::to_string(cur->size()) + " entries, no index '" + key + "'");
+      cur = &(*cur)[std::stoul(key)];
+      walked += "[" + key + "]";
+    } else if (cur->is_object() || cur->is_null()) {
+      if (cur->is_null()) *cur = nlohmann::json::object();
+      walked += (walked.empty() ? "" : ".") + key;
+      if (!last && !cur->contains(key)) (*cur)[key] = nlohmann::json::object();
+      cur = &(*cur)[key];
+    } else {
+      throw SceneError(label + ": --set " + path + ": " + walked + " is a " + cur->type_name() +
+                       ", not an object or array");
+    }
+  }
+  *cur = value;
+}
+
+uint64_t Scene::steps() const { return static_cast<uint64_t>(std::llround(duration / dt)); }
+
+State Scene::initial_state() const {
+  State s;
+  const auto n = static_cast<Eigen::Index>(particles.size());
+  s.x.resize(2, n);
+  s.v.resize(2, n);
+  s.inv_mass.resize(n);
+  s.radius.resize(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    s.x.col(i) = particles.x[static_cast<std::size_t>(i)];
+    s.v.col(i) = particles.v[static_cast<std::size_t>(i)];
+    s.inv_mass[i] = particles.inv_mass[static_cast<std::size_t>(i)];
+    s.radius[i] = particles.radius[static_cast<std::size_t>(i)];
+  }
+  return s;
+}
+
+std::string Scene::obstacle_id(int64_t index) const {
+  const auto& obs = backend_scene.value("obstacles", nlohmann::json::array());
+  if (index < 0 || static_cast<std::size_t>(index) >= obs.size()) return "";
+  const auto& o = obs[static_cast<std::size_t>(index)];
+  if (o.is_object() && o.contains("id") && o["id"].is_string()) return o["id"].get<std::string>();
+  return "obstacles[" + std::to_string(index) + "]";
+}
+
+std::vector<uint32_t> Scene::resolve_elements(const ForceSpec& f, uint32_t arity) const {
+  const std::string where = f.where + ".elements";
+  const uint32_t n = static_cast<uint32_t>(particles.size());
+  std::vector<uint32_t> out;
+  const auto& e = f.elements;
+  if (e.is_null()) {
+    if (arity != 1)
+      throw SceneError(where + ": plugin '" + f.name + "' acts on elements of " +
+                       std::to_string(arity) +
+                       " particles; give \"elements\": a list or {\"body\": ..., \"set\": ...}");
+    for (uint32_t i = 0; i < n; ++i) out.push_back(i);
+    return out;
+  }
+  if (e.is_object()) {
+    if (!e.contains("body") || !e["body"].is_string())
+      throw SceneError(where + ".body: expected the name of a body, " +
+                       describe(e.value("body", nlohmann::json())));
+    for (const auto& [k, _] : e.items())
+      if (k != "body" && k != "set")
+        throw SceneError(where + "." + k + ": unknown key (expected body, set)");
+    const std::string body = e["body"].get<std::string>();
+    const std::string set = e.value("set", arity == 1 ? std::string("particles") : std::string());
+    for (const auto& b : bodies) {
+      if (b.name != body) continue;
+      if (set == "particles" && arity == 1) {
+        for (uint32_t i = 0; i < b.count; ++i) out.push_back(b.first + i);
+        return out;
+      }
+      auto it = b.sets.find(set);
+      if (it == b.sets.end()) {
+        std::string names = arity == 1 ? "particles" : "";
+        for (const auto& [name, _s] : b.sets) names += (names.empty() ? "" : ", ") + name;
+        throw SceneError(where + ".set: body '" + body + "' has no element set '" + set +
+                         "' (it has: " + names + ")");
+      }
+      if (it->second.arity != arity)
+        throw SceneError(where + ".set: set '" + set + "' of body '" + body + "' has elements of " +
+                         std::to_string(it->second.arity) + " particles, but plugin '" + f.name +
+                         "' needs " + std::to_string(arity));
+      return it->second.indices;
+    }
+    throw SceneError(where + ".body: no body named '" + body + "'");
+  }
+  if (!e.is_array()) throw SceneError(where + ": expected a list of elements, " + describe(e));
+  for (std::size_t i = 0; i < e.size(); ++i) {
+    const std::string ei = where + "[" + std::to_string(i) + "]";
+    std::vector<nlohmann::json> items;
+    if (arity == 1 && e[i].is_number()) {
+      items.push_back(e[i]);
+    } else {
+      if (!e[i].is_array() || e[i].size() != arity)
+        throw SceneError(ei + ": expected " + std::to_string(arity) + " particle indices, " +
+                         describe(e[i]));
+      items.assign(e[i].begin(), e[i].end());
+    }
+    for (const auto& idx : items) {
+      if (!idx.is_number_integer() || idx.get<long long>() < 0 || idx.get<long long>() >= n)
+        throw SceneError(ei + ": particle index must be an integer in [0, " + std::to_string(n) +
+                         "), " + describe(idx));
+      out.push_back(idx.get<uint32_t>());
+    }
+  }
+  return out;
+}
+
+Scene parse_scene(const std::string& text, const std::string& label, const fs::path& base_dir,
+                  const std::vector<std::string>& overrides) {
+  Scene s;
+  s.label = label;
+  s.base_dir = base_dir;
+  s.doc = parse_json_text(text, label);
+  for (const auto& o : overrides) apply_override(s.doc, o, label);
+  const auto& d = s.doc;
+  const Loc root{label, ""};
+  require_object(d, root);
+  check_keys(d,
+             {"$schema", "name", "description", "time", "integrator", "backend", "plugin_path",
+              "particles", "bodies", "forces", "obstacles", "inputs", "contacts", "output",
+              "checks", "crosscheck"},
+             root);
+  s.name = read_string_or(d, "name", fs::path(label).stem().string(), root);
+  s.description = read_string_or(d, "description", "", root);
+
+  // time
+  if (!d.contains("time"))
+    throw(root / "time").error("required object {\"dt\", \"duration\"} is missing");
+  const auto& t = d.at("time");
+  require_object(t, root / "time");
+  check_keys(t, {"dt", "duration"}, root / "time");
+  s.dt = read_number(t, "dt", root / "time");
+  if (!(s.dt > 0.0)) throw(root / "time" / "dt").error("must be > 0, got " + t.at("dt").dump());
+  s.duration = read_number(t, "duration", root / "time");
+  if (!(s.duration >= 0.0))
+    throw(root / "time" / "duration").error("must be >= 0, got " + t.at("duration").dump());
+  if (s.duration / s.dt > 1e12)
+    throw(root / "time").error("duration / dt is over 1e12 steps; check the units");
+
+  s.integrator = read_string_or(d, "integrator", "symplectic_euler", root);
+
+  // backend
+  if (d.contains("backend")) {
+    const auto& b = d.at("backend");
+    if (b.is_string()) {
+      s.backend =
+          PluginRef{b.get<std::string>(), "", nlohmann::json::object(), (root / "backend").str()};
+    } else {
+      require_object(b, root / "backend");
+      check_keys(b, {"name", "library", "params"}, root / "backend");
+      s.backend = read_plugin_ref(b, root / "backend", "name");
+    }
+  } else {
+    s.backend = PluginRef{"none", "", nlohmann::json::object(), (root / "backend").str()};
+  }
+
+  // plugin_path: folders relative to the scene file
+  if (d.contains("plugin_path")) {
+    const auto& pp = d.at("plugin_path");
+    if (!pp.is_array())
+      throw(root / "plugin_path").error("expected a list of folders, " + describe(pp));
+    for (std::size_t i = 0; i < pp.size(); ++i) {
+      if (!pp[i].is_string())
+        throw(root / "plugin_path")[i].error("expected a folder, " + describe(pp[i]));
+      fs::path p = pp[i].get<std::string>();
+      s.plugin_path.push_back(p.is_absolute() ? p : base_dir / p);
+    }
+  }
+
+  // particles and bodies
+  if (d.contains("particles")) read_particles(d.at("particles"), root / "particles", s.particles);
+  if (d.contains("bodies")) {
+    const auto& bl = d.at("bodies");
+    if (!bl.is_array())
+      throw(root / "bodies").error("expected an array of bodies, " + describe(bl));
+    for (std::size_t i = 0; i < bl.size(); ++i) {
+      require_object(bl[i], (root / "bodies")[i]);
+      Body b = build_body(bl[i], (root / "bodies")[i].str(), s.particles);
+      for (const auto& other : s.bodies)
+        if (!b.name.empty() && other.name == b.name)
+          throw((root / "bodies")[i] / "name")
+              .error("a body named '" + b.name + "' already exists");
+      s.bodies.push_back(std::move(b));
+    }
+  }
+  if (s.particles.size() == 0)
+    throw root.error("the scene has no particles (give \"particles\" or \"bodies\")");
+
+  // forces
+  if (d.contains("forces")) {
+    const auto& fl = d.at("forces");
+    if (!fl.is_array())
+      throw(root / "forces").error("expected an array of forces, " + describe(fl));
+    for (std::size_t i = 0; i < fl.size(); ++i) {
+      const Loc fa = (root / "forces")[i];
+      require_object(fl[i], fa);
+      check_keys(fl[i], {"type", "library", "params", "elements", "name"}, fa);
+      ForceSpec f;
+      static_cast<PluginRef&>(f) = read_plugin_ref(fl[i], fa, "type");
+      f.elements = fl[i].value("elements", nlohmann::json());
+      s.forces.push_back(std::move(f));
+    }
+  }
+
+  // what the backend gets, verbatim
+  s.backend_scene = nlohmann::json::object();
+  for (const char* k : {"obstacles", "inputs", "contacts"})
+    if (d.contains(k)) s.backend_scene[k] = d.at(k);
+  if (s.backend_scene.contains("obstacles") && !s.backend_scene["obstacles"].is_array())
+    throw(root / "obstacles")
+        .error("expected an array of obstacles, " + describe(d.at("obstacles")));
+
+  // output and checks
+  if (d.contains("output")) {
+    const auto& o = d.at("output");
+    require_object(o, root / "output");
+    check_keys(o, {"every"}, root / "output");
+    s.output_every = read_count_or(o, "every", 1, root / "output");
+    if (s.output_every == 0) throw(root / "output" / "every").error("must be >= 1, got 0");
+  }
+  if (d.contains("checks")) {
+    const auto& c = d.at("checks");
+    require_object(c, root / "checks");
+    check_keys(c, {"energy_blowup", "energy_every"}, root / "checks");
+    s.energy_blowup = read_number_or(c, "energy_blowup", s.energy_blowup, root / "checks");
+    if (!(s.energy_blowup > 0.0)) throw(root / "checks" / "energy_blowup").error("must be > 0");
+    s.energy_every = read_count_or(c, "energy_every", s.energy_every, root / "checks");
+    if (s.energy_every == 0) throw(root / "checks" / "energy_every").error("must be >= 1, got 0");
+  }
+  return s;
+}
+
+Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides) {
+  std::error_code ec;
+  if (!fs::exists(file, ec)) throw SceneError(file.string() + ": scene file not found");
+  if (fs::is_directory(file, ec))
+    throw SceneError(file.string() + ": is a folder, expected a scene file");
+  std::ifstream in(file);
+  if (!in) throw SceneError(file.string() + ": cannot be read");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_scene(ss.str(), file.string(), fs::absolute(file).parent_path(), overrides);
+}
+
+}  // namespace pinsim

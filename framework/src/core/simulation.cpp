@@ -1,0 +1,247 @@
+#include "core/simulation.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/integrator.hpp"
+#include "core/param_validation.hpp"
+
+namespace pinsim {
+namespace {
+
+std::shared_ptr<const LoadedPlugin> load_ref(PluginLoader& loader, const PluginRef& ref,
+                                             const std::filesystem::path& base_dir) {
+  try {
+    if (!ref.library.empty()) {
+      std::filesystem::path lib = ref.library;
+      if (lib.is_relative()) lib = base_dir / lib;
+      return loader.load_path(lib, ref.name);
+    }
+    return loader.load(ref.name);
+  } catch (const LoadError& e) {
+    throw LoadError(ref.where + ": " + e.what());
+  }
+}
+
+void emit_event(void* ctx, const pinsim_event* e) {
+  static_cast<std::vector<pinsim_event>*>(ctx)->push_back(*e);
+}
+
+void add_triplet(void* ctx, uint32_t row, uint32_t col, double value) {
+  static_cast<std::vector<Eigen::Triplet<double>>*>(ctx)->emplace_back(row, col, value);
+}
+
+/// Central differences of one force's add_force in x (wrt_v false) or v (true): column j of
+/// the Jacobian is (f(q + eps e_j) - f(q - eps e_j)) / (2 eps), eps = 1e-6 max(1, |q_j|)
+/// (error O(eps^2) times the third derivative, rounding O(1e-16 |f| / eps)).
+void fd_jacobian(const ForceInstance& force, const State& s, bool wrt_v,
+                 std::vector<Eigen::Triplet<double>>& out) {
+  State p = s;
+  Eigen::Matrix2Xd fp(2, s.x.cols()), fm(2, s.x.cols());
+  Eigen::Matrix2Xd& q = wrt_v ? p.v : p.x;
+  const Eigen::Index n = q.size();
+  for (Eigen::Index j = 0; j < n; ++j) {
+    if (!(s.inv_mass[j / 2] > 0.0)) continue;  // pinned dofs never move
+    const double q0 = q.data()[j];
+    const double eps = 1e-6 * std::max(1.0, std::abs(q0));
+    q.data()[j] = q0 + eps;
+    fp.setZero();
+    force.add_force(p.view(), fp.data());
+    q.data()[j] = q0 - eps;
+    fm.setZero();
+    force.add_force(p.view(), fm.data());
+    q.data()[j] = q0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      const double d = (fp.data()[i] - fm.data()[i]) / (2.0 * eps);
+      if (d != 0.0) out.emplace_back(static_cast<int>(i), static_cast<int>(j), d);
+    }
+  }
+}
+
+}  // namespace
+
+Simulation::Simulation(const Scene& scene, PluginLoader& loader, const RunOptions& options)
+    : scene_(scene), state_(scene.initial_state()) {
+  integrator_name_ = options.integrator.empty() ? scene_.integrator : options.integrator;
+  try {
+    integrator_ = make_integrator(integrator_name_);
+  } catch (const std::invalid_argument& e) {
+    throw SceneError(scene_.label + ": integrator: " + e.what());
+  }
+
+  PluginRef bref = scene_.backend;
+  if (!options.backend.empty() && options.backend != bref.name) {
+    // Another backend's parameters do not apply; it starts from its defaults.
+    bref = PluginRef{options.backend, "", nlohmann::json::object(), "--backend " + options.backend};
+  }
+  auto bplugin = load_ref(loader, bref, scene_.base_dir);
+  if (bplugin->table->kind != PINSIM_KIND_BACKEND)
+    throw SceneError(bref.where + ": plugin '" + bref.name + "' is a force, not a backend");
+
+  for (const auto& f : scene_.forces) {
+    auto p = load_ref(loader, f, scene_.base_dir);
+    if (p->table->kind != PINSIM_KIND_FORCE)
+      throw SceneError(f.where + ".type: plugin '" + f.name + "' is a backend, not a force");
+    InstanceArgs a;
+    a.params = validate_params(*p->table, f.params, f.where + ".params");
+    a.elements = scene_.resolve_elements(f, p->table->arity == 0 ? 1 : p->table->arity);
+    a.context = f.where;
+    forces_.push_back(std::make_unique<ForceInstance>(p, state_, std::move(a)));
+  }
+
+  InstanceArgs ba;
+  ba.params = validate_params(*bplugin->table, bref.params, bref.where + ".params");
+  ba.scene = scene_.backend_scene;
+  ba.context = scene_.label;
+  backend_ = std::make_unique<BackendInstance>(bplugin, state_, std::move(ba));
+
+  e0_ = kinetic_energy(state_) + potential_energy(state_);
+  // Energy scale for relative drift: total |terms| at the start, never zero.
+  e_scale_ = kinetic_energy(state_);
+  for (const auto& f : forces_)
+    if (f->has_energy()) e_scale_ += std::abs(f->energy(state_.view()));
+  if (!(e_scale_ > 0.0)) e_scale_ = 1.0;
+}
+
+Simulation::~Simulation() = default;
+
+void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f) {
+  f.setZero(2, s.x.cols());
+  const pinsim_state_view view = s.view();
+  for (const auto& force : forces_) force->add_force(view, f.data());
+  ++force_evals_;
+  check_finite_forces(s, f);
+}
+
+void Simulation::check_finite_forces(const State& s, const Eigen::Matrix2Xd& f) const {
+  if (f.allFinite()) return;
+  // Find the first particle and the first plugin that produced a non-finite force.
+  const pinsim_state_view view = s.view();
+  Eigen::Matrix2Xd one(2, s.x.cols());
+  for (const auto& force : forces_) {
+    one.setZero();
+    force->add_force(view, one.data());
+    for (Eigen::Index i = 0; i < one.cols(); ++i)
+      if (!one.col(i).allFinite())
+        throw NumericError("non-finite force (" + std::to_string(one(0, i)) + ", " +
+                               std::to_string(one(1, i)) + ") on particle " + std::to_string(i) +
+                               " from " + force->context() + " (plugin '" + force->plugin().name() +
+                               "')",
+                           step_ + 1, s.t, i);
+  }
+  for (Eigen::Index i = 0; i < f.cols(); ++i)
+    if (!f.col(i).allFinite())
+      throw NumericError("non-finite total force on particle " + std::to_string(i), step_ + 1, s.t,
+                         i);
+}
+
+void Simulation::drift(State& s, double dt) {
+  const pinsim_event_sink sink{&events_, &emit_event};
+  backend_->advance(s, dt, &sink);
+}
+
+void Simulation::assemble_jacobians(const State& s, Eigen::SparseMatrix<double>& dfdx,
+                                    Eigen::SparseMatrix<double>& dfdv) {
+  const auto n = static_cast<Eigen::Index>(2 * s.size());
+  std::vector<Eigen::Triplet<double>> tx, tv;
+  const pinsim_triplet_sink sx{&tx, &add_triplet}, sv{&tv, &add_triplet};
+  const pinsim_state_view view = s.view();
+  if (fd_warned_.size() != forces_.size()) fd_warned_.assign(forces_.size(), false);
+  for (std::size_t k = 0; k < forces_.size(); ++k) {
+    const ForceInstance& f = *forces_[k];
+    const uint32_t caps = f.plugin().table->capabilities;
+    const bool has_x = f.has_jacobians() && (caps & PINSIM_CAP_DFDX) != 0;
+    const bool has_v = f.has_jacobians() && (caps & PINSIM_CAP_DFDV) != 0;
+    const bool need_v = (caps & PINSIM_CAP_DISSIPATIVE) != 0 || (caps & PINSIM_CAP_ENERGY) == 0;
+    if (has_x || has_v) f.add_jacobians(view, has_x ? &sx : nullptr, has_v ? &sv : nullptr);
+    if (!has_x || (!has_v && need_v)) {
+      if (!fd_warned_[k]) {
+        fd_warned_[k] = true;
+        spdlog::warn(
+            "{}: plugin '{}' provides no {} Jacobian; using central finite differences of its "
+            "force (2 force evaluations per degree of freedom per step)",
+            f.context(), f.plugin().name(), !has_x ? "df/dx" : "df/dv");
+      }
+      if (!has_x) fd_jacobian(f, s, false, tx);
+      if (!has_v && need_v) fd_jacobian(f, s, true, tv);
+    }
+  }
+  dfdx.resize(n, n);
+  dfdv.resize(n, n);
+  dfdx.setFromTriplets(tx.begin(), tx.end());
+  dfdv.setFromTriplets(tv.begin(), tv.end());
+  ++jacobian_evals_;
+}
+
+void Simulation::check_finite_state() const {
+  const auto& s = state_;
+  for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
+    if (!s.x.col(i).allFinite() || !s.v.col(i).allFinite())
+      throw NumericError("non-finite state of particle " + std::to_string(i) + ": x = (" +
+                             std::to_string(s.x(0, i)) + ", " + std::to_string(s.x(1, i)) +
+                             "), v = (" + std::to_string(s.v(0, i)) + ", " +
+                             std::to_string(s.v(1, i)) + ") after backend '" +
+                             backend_->plugin().name() + "'",
+                         step_ + 1, s.t, i);
+  }
+}
+
+double Simulation::kinetic_energy(const State& s) const {
+  double e = 0.0;
+  for (Eigen::Index i = 0; i < s.x.cols(); ++i)
+    if (s.inv_mass[i] > 0.0) e += 0.5 * s.v.col(i).squaredNorm() / s.inv_mass[i];
+  return e;
+}
+
+double Simulation::potential_energy(const State& s) const {
+  double e = 0.0;
+  const pinsim_state_view view = s.view();
+  for (const auto& f : forces_)
+    if (f->has_energy()) e += f->energy(view);
+  return e;
+}
+
+bool Simulation::energy_complete() const {
+  for (const auto& f : forces_)
+    if (!f->has_energy()) return false;
+  return true;
+}
+
+void Simulation::check_energy() {
+  const double e = kinetic_energy(state_) + potential_energy(state_);
+  const double drift = std::abs(e - e0_) / e_scale_;
+  if (drift > max_drift_) max_drift_ = drift;
+  if (e - e0_ > scene_.energy_blowup * e_scale_) {
+    // Blame the particle with the largest kinetic energy.
+    Eigen::Index worst = 0;
+    double worst_ke = -1.0;
+    for (Eigen::Index i = 0; i < state_.x.cols(); ++i) {
+      const double ke =
+          state_.inv_mass[i] > 0.0 ? 0.5 * state_.v.col(i).squaredNorm() / state_.inv_mass[i] : 0.0;
+      if (ke > worst_ke) {
+        worst_ke = ke;
+        worst = i;
+      }
+    }
+    throw NumericError(
+        "energy blow-up: E = " + std::to_string(e) + " from E0 = " + std::to_string(e0_) +
+            " (growth " + std::to_string(drift) +
+            " x the initial energy scale, limit checks.energy_blowup = " +
+            std::to_string(scene_.energy_blowup) + "); fastest particle " + std::to_string(worst),
+        step_, state_.t, worst);
+  }
+}
+
+void Simulation::step() {
+  // Time at the end of the step from the step count, so t carries no accumulated rounding.
+  const double t_end = static_cast<double>(step_ + 1) * scene_.dt;
+  integrator_->step(*this, scene_.dt);
+  check_finite_state();
+  state_.t = t_end;
+  ++step_;
+  if (step_ % scene_.energy_every == 0) check_energy();
+}
+
+}  // namespace pinsim

@@ -1,0 +1,102 @@
+// A scene brought to life: plugin instances, the state, and stepping.
+#pragma once
+
+#include <Eigen/Core>
+#include <Eigen/SparseCore>
+#include <cstdint>
+#include <memory>
+#include <pinsim/state.hpp>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "core/plugin_instance.hpp"
+#include "core/plugin_loader.hpp"
+#include "core/scene.hpp"
+
+namespace pinsim {
+
+class Integrator;
+
+/// A run that went numerically wrong: where it began.
+class NumericError : public std::runtime_error {
+ public:
+  NumericError(const std::string& what, uint64_t step, double t, int64_t particle)
+      : std::runtime_error(what), step(step), t(t), particle(particle) {}
+  uint64_t step;     ///< the step during which it was detected, counting from 1
+  double t;          ///< time at detection, s
+  int64_t particle;  ///< particle where it began
+};
+
+/// Choices that override the scene (from the command line).
+struct RunOptions {
+  std::string backend;     ///< "" = the scene's
+  std::string integrator;  ///< "" = the scene's
+};
+
+class Simulation {
+ public:
+  /// Loads the plugins the scene names (only those), validates their parameters, creates
+  /// instances. Throws SceneError / LoadError / PluginError with locations.
+  Simulation(const Scene& scene, PluginLoader& loader, const RunOptions& options = {});
+  ~Simulation();
+
+  /// Advances one time step dt; contact events of the step are appended to events().
+  /// Throws NumericError on NaN/Inf (checked every step) or energy blow-up.
+  void step();
+
+  /// f = sum of all forces at state s (f is resized to 2xN and zeroed first).
+  void compute_forces(const State& s, Eigen::Matrix2Xd& f);
+  /// The backend's position update over dt; appends events.
+  void drift(State& s, double dt);
+  /// Force Jacobians at s, 2N x 2N over dofs (2*particle + component): dfdx = sum df/dx,
+  /// dfdv = sum df/dv. Forces without a Jacobian get central finite differences of their
+  /// add_force (a one-time warning names the plugin); df/dv is differenced only for forces
+  /// flagged dissipative or without an energy; differenced columns of pinned particles are
+  /// left zero (their dofs never move).
+  void assemble_jacobians(const State& s, Eigen::SparseMatrix<double>& dfdx,
+                          Eigen::SparseMatrix<double>& dfdv);
+  /// Number of assemble_jacobians calls.
+  uint64_t jacobian_evaluations() const { return jacobian_evals_; }
+
+  double kinetic_energy(const State& s) const;
+  /// Sum of the energies of the forces that provide one.
+  double potential_energy(const State& s) const;
+  /// True when every force provides its energy (the total is then complete).
+  bool energy_complete() const;
+
+  State& state() { return state_; }
+  const State& state() const { return state_; }
+  const Scene& scene() const { return scene_; }
+  double dt() const { return scene_.dt; }
+  uint64_t step_index() const { return step_; }
+  uint64_t force_evaluations() const { return force_evals_; }
+  std::vector<pinsim_event>& events() { return events_; }
+  const std::vector<std::unique_ptr<ForceInstance>>& forces() const { return forces_; }
+  const BackendInstance& backend() const { return *backend_; }
+  const std::string& integrator_name() const { return integrator_name_; }
+  double energy_start() const { return e0_; }
+  double max_energy_drift() const { return max_drift_; }
+
+ private:
+  void check_finite_forces(const State& s, const Eigen::Matrix2Xd& f) const;
+  void check_finite_state() const;
+  void check_energy();
+
+  Scene scene_;
+  State state_;
+  std::vector<std::unique_ptr<ForceInstance>> forces_;
+  std::unique_ptr<BackendInstance> backend_;
+  std::unique_ptr<Integrator> integrator_;
+  std::string integrator_name_;
+  std::vector<pinsim_event> events_;
+  uint64_t step_ = 0;
+  uint64_t force_evals_ = 0;
+  uint64_t jacobian_evals_ = 0;
+  std::vector<bool> fd_warned_;  ///< per force: finite-difference warning already given
+  double e0_ = 0.0;
+  double e_scale_ = 0.0;
+  double max_drift_ = 0.0;
+};
+
+}  // namespace pinsim

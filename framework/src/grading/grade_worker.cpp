@@ -1,0 +1,308 @@
+// The child side of the autograder: runs one rubric test and prints its verdict as JSON.
+// Everything here may crash, hang or run out of memory because of the submission; the
+// parent (grader.cpp) turns that into a failed test.
+#include <cmath>
+#include <iostream>
+#include <random>
+#include <sstream>
+
+#include "core/param_validation.hpp"
+#include "core/plugin_instance.hpp"
+#include "core/scene.hpp"
+#include "core/simulation.hpp"
+#include "grading/grader.hpp"
+#include "tools/plugin_check.hpp"
+
+namespace fs = std::filesystem;
+
+namespace pinsim {
+namespace {
+
+struct Verdict {
+  bool passed = false;
+  std::string output;
+};
+
+/// Finds the submission's library declaring plugin `name`; "" with `why` filled if none.
+fs::path find_library(const fs::path& dir, const std::string& name, std::string& why) {
+  std::error_code ec;
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(dir, ec))
+    if (e.path().extension() == ".so") files.push_back(e.path());
+  std::sort(files.begin(), files.end());
+  for (const auto& f : files) {
+    try {
+      auto p = load_plugin_file(f);
+      if (p->name() == name) return f;
+      why += "\n  " + f.filename().string() + " declares plugin '" + p->name() + "'";
+    } catch (const std::exception& e) {
+      why += "\n  " + f.filename().string() + ": " + e.what();
+    }
+  }
+  why = "no library of the submission declares plugin '" + name +
+        "':" + (why.empty() ? " none found" : why);
+  return {};
+}
+
+std::string num(double v) {
+  std::ostringstream o;
+  o.precision(3);
+  o << v;
+  return o.str();
+}
+
+Verdict check_plugin_test(const LoadedPlugin& p, const RubricTest& t) {
+  CheckOptions opt;
+  opt.params = t.spec.value("params", nlohmann::json::object());
+  opt.seed = t.spec.value("seed", opt.seed);
+  opt.trials = t.spec.value("trials", opt.trials);
+  opt.assume_internal = t.spec.value("assume_internal", false);
+  const CheckReport rep = check_force_plugin(p, opt);
+  const CheckResult* r = rep.find(t.check);
+  if (r == nullptr) {
+    // The checks stop early when the plugin cannot even be created: say why.
+    std::string why;
+    for (const auto& c : rep.checks)
+      if (c.status == CheckStatus::Fail) why += "; " + c.what + ": " + c.detail;
+    return {false, "the check '" + t.check + "' could not run" + why};
+  }
+  if (r->status == CheckStatus::Skip) return {false, r->what + ": not checked: " + r->detail};
+  return {r->status == CheckStatus::Pass, r->what + ": worst error " + num(r->worst) +
+                                              " (accepted " + num(r->tolerance) + "); " +
+                                              r->detail};
+}
+
+/// Random states on which submission and reference are compared: forces (and energies).
+Verdict reference_test(const std::shared_ptr<const LoadedPlugin>& sub, const RubricTest& t) {
+  PluginLoader loader(plugin_search_dirs());
+  const std::string ref_name = t.spec.at("reference").get<std::string>();
+  auto ref = loader.load(ref_name);
+  const nlohmann::json given = t.spec.value("params", nlohmann::json::object());
+  nlohmann::json ref_params =
+      validate_params(*ref->table, given, "reference '" + ref_name + "' params");
+  nlohmann::json sub_params;
+  try {
+    sub_params = validate_params(*sub->table, given, "your plugin's params");
+  } catch (const std::exception& e) {
+    return {false, std::string("your plugin does not accept the parameters the reference takes: ") +
+                       e.what()};
+  }
+  if (sub->table->arity != ref->table->arity)
+    return {false, "your plugin acts on elements of " + std::to_string(sub->table->arity) +
+                       " particles, the reference on " + std::to_string(ref->table->arity)};
+  const uint32_t arity = ref->table->arity == 0 ? 1 : ref->table->arity;
+  const int n = 7;
+  std::vector<uint32_t> elements;
+  for (int i = 0; i + static_cast<int>(arity) <= n; ++i)
+    for (uint32_t k = 0; k < arity; ++k) elements.push_back(static_cast<uint32_t>(i) + k);
+  std::mt19937_64 rng(t.spec.value("seed", 7ull));
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  auto random_state = [&] {
+    State s;
+    s.x.resize(2, n);
+    s.v.resize(2, n);
+    s.inv_mass = Eigen::VectorXd::Constant(n, 1.0);
+    s.radius = Eigen::VectorXd::Constant(n, 0.05);
+    for (int i = 0; i < n; ++i) {
+      s.x.col(i) << 0.3 * i + 0.1 * u(rng), 0.2 * u(rng);
+      s.v.col(i) << u(rng), u(rng);
+    }
+    return s;
+  };
+  const State rest = random_state();
+  ForceInstance fr(ref, rest, {ref_params, nullptr, elements, "reference"});
+  ForceInstance fs_(sub, rest, {sub_params, nullptr, elements, "your plugin"});
+  const double tol = t.spec.value("tolerance", 1e-8);
+  double worst = 0.0;
+  std::string where = "";
+  const int trials = t.spec.value("trials", 8);
+  for (int k = 0; k < trials; ++k) {
+    const State s = random_state();
+    Eigen::Matrix2Xd f1 = Eigen::Matrix2Xd::Zero(2, n), f2 = Eigen::Matrix2Xd::Zero(2, n);
+    fr.add_force(s.view(), f1.data());
+    fs_.add_force(s.view(), f2.data());
+    const double scale = std::max(1e-12, f1.cwiseAbs().maxCoeff());
+    for (int i = 0; i < n; ++i) {
+      const double err = (f2.col(i) - f1.col(i)).norm() / scale;
+      if (!std::isfinite(err) || err > worst) {
+        worst = std::isfinite(err) ? err : HUGE_VAL;
+        where = "state " + std::to_string(k) + ", particle " + std::to_string(i) + ": yours (" +
+                num(f2(0, i)) + ", " + num(f2(1, i)) + "), reference (" + num(f1(0, i)) + ", " +
+                num(f1(1, i)) + ")";
+      }
+    }
+    if (fr.has_energy() && fs_.has_energy()) {
+      const double e1 = fr.energy(s.view()), e2 = fs_.energy(s.view());
+      const double err = std::abs(e2 - e1) / std::max(1e-12, std::abs(e1));
+      if (!std::isfinite(err) || err > worst) {
+        worst = std::isfinite(err) ? err : HUGE_VAL;
+        where =
+            "state " + std::to_string(k) + ": energy yours " + num(e2) + ", reference " + num(e1);
+      }
+    }
+  }
+  return {worst <= tol, "agreement with the reference '" + ref_name + "' on " +
+                            std::to_string(trials) + " random states: worst relative error " +
+                            num(worst) + " (accepted " + num(tol) + ")" +
+                            (where.empty() ? "" : "; worst at " + where)};
+}
+
+/// Runs a scene to its end and returns the final state (throws on failure).
+struct SceneRun {
+  State final_state;
+  std::vector<pinsim_event> events;
+};
+
+Verdict simulation_test(const fs::path& lib, const RubricTest& t, const fs::path& rubric_dir) {
+  const Scene base = load_scene(rubric_dir / t.spec.at("scene").get<std::string>());
+  Scene mine = base;
+  int replaced = 0;
+  for (auto& f : mine.forces)
+    if (f.name == t.plugin) {
+      f.library = lib.string();
+      ++replaced;
+    }
+  if (replaced == 0) return {false, "the scene uses no force '" + t.plugin + "' (rubric error)"};
+  PluginLoader l1(plugin_search_dirs(base.plugin_path)), l2(plugin_search_dirs(base.plugin_path));
+  Simulation ref(base, l1), sub(mine, l2);
+  const double tol = t.spec.value("tolerance", 1e-6);
+  double worst = 0.0;
+  uint64_t worst_step = 0;
+  for (uint64_t n = 0; n < base.steps(); ++n) {
+    ref.step();
+    try {
+      sub.step();
+    } catch (const NumericError& e) {
+      return {false, "your simulation failed at step " + std::to_string(e.step) + ", particle " +
+                         std::to_string(e.particle) + ": " + e.what()};
+    }
+    const double d = (sub.state().x - ref.state().x).colwise().norm().maxCoeff();
+    if (!(d <= worst)) {
+      worst = std::isfinite(d) ? d : HUGE_VAL;
+      worst_step = n + 1;
+    }
+  }
+  return {worst <= tol, "simulation of " + t.spec.at("scene").get<std::string>() + " (" +
+                            std::to_string(base.steps()) + " steps): largest position difference " +
+                            num(worst) + " from the reference, at step " +
+                            std::to_string(worst_step) + " (accepted " + num(tol) + ")"};
+}
+
+/// Not scored: the same scene on a second reference (Box2D), and how far the submission's
+/// and the reference's final positions are from it, so a student sees two opinions.
+std::string second_opinion(const Scene& scene, const RubricTest& t, const State& mine,
+                           const State& ref) {
+  if (!t.spec.contains("second_opinion")) return "";
+  const std::string name = t.spec.at("second_opinion").get<std::string>();
+  try {
+    Scene other = scene;
+    other.backend =
+        PluginRef{name, "", t.spec.value("second_opinion_params", nlohmann::json::object()),
+                  "second opinion"};
+    PluginLoader loader(plugin_search_dirs());
+    Simulation sim(other, loader);
+    for (uint64_t n = 0; n < other.steps(); ++n) sim.step();
+    const auto& x = sim.state().x;
+    return "\nsecond opinion (" + name + ", not scored): yours differs from it by " +
+           num((mine.x - x).colwise().norm().maxCoeff()) + ", the reference by " +
+           num((ref.x - x).colwise().norm().maxCoeff());
+  } catch (const std::exception& e) {
+    return "\nsecond opinion (" + name + ") unavailable: " + e.what();
+  }
+}
+
+Verdict backend_test(const fs::path& lib, const RubricTest& t, const fs::path& rubric_dir) {
+  const std::string scene_file = t.spec.at("scene").get<std::string>();
+  Scene ref_scene = load_scene(rubric_dir / scene_file);
+  ref_scene.backend = PluginRef{t.spec.at("reference").get<std::string>(), "",
+                                ref_scene.backend.params, ref_scene.backend.where};
+  Scene mine = ref_scene;
+  mine.backend = PluginRef{t.plugin, lib.string(), nlohmann::json::object(), "your backend"};
+  PluginLoader l1(plugin_search_dirs()), l2(plugin_search_dirs());
+  Simulation ref(ref_scene, l1), sub(mine, l2);
+  const double tol = t.spec.value("tolerance", 1e-3);
+  const bool has_distance = ref.backend().has_distance();
+  for (uint64_t n = 0; n < ref_scene.steps(); ++n) {
+    ref.step();
+    sub.events().clear();
+    try {
+      sub.step();
+    } catch (const NumericError& e) {
+      return {false,
+              "your backend's run failed at step " + std::to_string(e.step) + ": " + e.what()};
+    }
+    const State& s = sub.state();
+    if (t.check == "backend_approaching_only") {
+      for (const auto& e : sub.events())
+        if (e.vn_before > tol)
+          return {false, "at t = " + num(e.t) + " particle " + std::to_string(e.particle) +
+                             " got an impulse from obstacle " + ref_scene.obstacle_id(e.obstacle) +
+                             " while separating (normal velocity before = " + num(e.vn_before) +
+                             " > 0): apply an impulse only when v.n < 0"};
+    }
+    if (t.check == "backend_no_tunnelling" && has_distance) {
+      for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
+        int64_t obstacle = -1;
+        const double d = ref.backend().distance(s.x(0, i), s.x(1, i), s.t, &obstacle) - s.radius[i];
+        if (d < -tol)
+          return {false, "at step " + std::to_string(n + 1) + " (t = " + num(s.t) + ") particle " +
+                             std::to_string(i) + " is " + num(-d) + " inside obstacle " +
+                             ref_scene.obstacle_id(obstacle) + " (tunnelled or penetrated)"};
+      }
+    }
+  }
+  if (t.check == "backend_agreement") {
+    const double d = (sub.state().x - ref.state().x).colwise().norm().maxCoeff();
+    return {d <= tol, "final positions after " + std::to_string(ref_scene.steps()) +
+                          " steps differ from the reference by " + num(d) + " (accepted " +
+                          num(tol) + ")" + second_opinion(ref_scene, t, sub.state(), ref.state())};
+  }
+  if (t.check == "backend_no_tunnelling" && !has_distance)
+    return {false, "the reference backend has no distance(): cannot check (rubric error)"};
+  return {true, t.check == "backend_no_tunnelling"
+                    ? "no particle ever ended a step inside an obstacle by more than " + num(tol)
+                    : "every impulse was applied while approaching"};
+}
+
+}  // namespace
+
+int grade_worker(const fs::path& rubric_file, std::size_t index, const fs::path& libraries) {
+  Verdict v;
+  try {
+    const Rubric rubric = load_rubric(rubric_file);
+    if (index >= rubric.tests.size()) throw std::runtime_error("no test " + std::to_string(index));
+    const RubricTest& t = rubric.tests[index];
+    std::string why;
+    const fs::path lib = find_library(libraries, t.plugin, why);
+    if (lib.empty()) {
+      v = {false, why};
+    } else {
+      PluginLoader loader({});
+      auto p = loader.load_path(lib, t.plugin);
+      const bool want_force = rubric.kind == "force";
+      if (p->is_force() != want_force) {
+        v = {false, "plugin '" + t.plugin + "' is a " + (p->is_force() ? "force" : "backend") +
+                        ", this assignment wants a " + rubric.kind};
+      } else if (t.check == "load") {
+        v = {true, "loaded plugin '" + t.plugin + "' " + p->table->version + " from " +
+                       lib.filename().string()};
+      } else if (t.check == "reference") {
+        v = reference_test(p, t);
+      } else if (t.check == "simulation") {
+        v = simulation_test(lib, t, rubric.file.parent_path());
+      } else if (t.check.rfind("backend_", 0) == 0) {
+        v = backend_test(lib, t, rubric.file.parent_path());
+      } else {
+        v = check_plugin_test(*p, t);
+      }
+    }
+  } catch (const std::bad_alloc&) {
+    v = {false, "ran out of memory"};
+  } catch (const std::exception& e) {
+    v = {false, e.what()};
+  }
+  std::cout << nlohmann::json{{"passed", v.passed}, {"output", v.output}}.dump() << std::endl;
+  return 0;
+}
+
+}  // namespace pinsim

@@ -1,0 +1,95 @@
+// The pinball game behind `pinsim play`: physics at the scene's dt with live inputs, score,
+// ball save, game over, and an input recording that replays to the identical state.
+// No window code here (that is cli/cmd_play.cpp, with SDL2).
+#pragma once
+
+#include <cstdint>
+#include <memory>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "core/plugin_instance.hpp"
+#include "core/scene.hpp"
+#include "core/simulation.hpp"
+#include "pictures/render_data.hpp"
+
+namespace pinsim {
+
+/// Rules; defaults suit configs/pinball.json.
+struct GameRules {
+  int balls = 3;              ///< balls per game
+  double ball_save_s = 10.0;  ///< a ball drained this soon after it was served comes back free
+  int bumper_points = 100;    ///< per contact with an obstacle whose id contains "bumper"
+  int sling_points = 10;      ///< ... "sling"
+  int kick_points = 25;       ///< ... any other obstacle with a kick
+};
+
+/// One recorded input: applied before step `step` (counting from 0).
+struct GameInput {
+  uint64_t step;
+  std::string input;
+  bool press;
+};
+
+class PinballGame {
+ public:
+  /// The scene's own scripted inputs are dropped: the player drives the inputs.
+  PinballGame(const Scene& scene, PluginLoader& loader, GameRules rules = {});
+
+  /// Presses or releases a named input (a flipper, the plunger) before the next step.
+  /// Repeats of the current state are ignored (and not recorded).
+  void set_input(const std::string& input, bool pressed);
+  /// One physics step (symplectic Euler: forces kick, the backend drifts with contacts),
+  /// then the rules: score, drain, ball save, game over. Does nothing after game over.
+  void step();
+
+  const State& state() const { return state_; }
+  uint64_t steps() const { return steps_; }
+  double dt() const { return scene_.dt; }
+  int score() const { return score_; }
+  int balls_left() const { return balls_left_; }
+  bool game_over() const { return game_over_; }
+  /// A short message to show ("BALL SAVED", "GAME OVER", ...) and until when (sim time).
+  const std::string& message() const { return message_; }
+  double message_until() const { return message_until_; }
+  /// Names of the scene's inputs (from the moving obstacles).
+  const std::vector<std::string>& input_names() const { return input_names_; }
+  const BackendInstance& backend() const { return *backend_; }
+  const Scene& scene() const { return scene_; }
+
+  /// {"scene", "dt", "steps", "inputs": [{"step","input","action"}], "state_hash", "score",
+  ///  "balls_left", "game_over", "ball": [x, y]}
+  nlohmann::json recording(const std::string& scene_file) const;
+  /// Plays a recording's inputs for its number of steps (the scene must be the same).
+  void replay(const nlohmann::json& recording);
+
+ private:
+  void rebuild_backend();
+  void serve_ball();
+
+  Scene scene_;
+  PluginLoader& loader_;
+  GameRules rules_;
+  std::unique_ptr<Simulation> sim_;  ///< forces only; the backend is ours
+  std::unique_ptr<BackendInstance> backend_;
+  State state_;
+  State initial_;
+  Eigen::Matrix2Xd f_;
+  std::vector<pinsim_event> events_;
+  nlohmann::json inputs_ = nlohmann::json::array();  ///< as the backend's "inputs"
+  std::vector<GameInput> recorded_;
+  std::vector<std::pair<uint64_t, GameInput>> pending_;
+  std::vector<std::string> input_names_;
+  std::vector<bool> pressed_;
+  ViewBox table_;  ///< the obstacles' bounds: below it the ball has drained
+  uint64_t steps_ = 0;
+  int score_ = 0;
+  int balls_left_ = 0;
+  bool game_over_ = false;
+  double served_at_ = 0.0;
+  std::string message_;
+  double message_until_ = 0.0;
+};
+
+}  // namespace pinsim

@@ -1,0 +1,247 @@
+#include "pictures/render.hpp"
+
+#include <cairo-svg.h>
+#include <cairo.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+
+#include "core/simulation.hpp"
+#include "pictures/render_field.hpp"
+
+namespace pinsim {
+namespace fs = std::filesystem;
+
+void particle_colour(std::size_t run, std::size_t particle, double rgb[3]) {
+  // Runs get hue families; particles of one run vary in lightness and hue a little.
+  static const double base[6][3] = {{0.85, 0.12, 0.12}, {0.10, 0.35, 0.85}, {0.10, 0.60, 0.25},
+                                    {0.60, 0.20, 0.70}, {0.90, 0.55, 0.05}, {0.10, 0.60, 0.65}};
+  const double* b = base[run % 6];
+  const double k = 1.0 - 0.35 * static_cast<double>(particle % 4) / 3.0;
+  const double shift = 0.15 * static_cast<double>((particle / 4) % 3) / 2.0;
+  rgb[0] = std::clamp(b[0] * k + shift, 0.0, 1.0);
+  rgb[1] = std::clamp(b[1] * k + shift * 0.5, 0.0, 1.0);
+  rgb[2] = std::clamp(b[2] * k, 0.0, 1.0);
+}
+
+namespace {
+
+struct CairoDeleter {
+  void operator()(cairo_surface_t* s) const { cairo_surface_destroy(s); }
+  void operator()(cairo_t* c) const { cairo_destroy(c); }
+};
+
+void label(cairo_t* cr, double x, double y, const std::string& text, double size) {
+  cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
+  cairo_set_font_size(cr, size);
+  cairo_text_extents_t e;
+  cairo_text_extents(cr, text.c_str(), &e);
+  cairo_set_source_rgba(cr, 1, 1, 1, 0.8);
+  cairo_rectangle(cr, x - 3, y - size, e.x_advance + 6, size * 1.35);
+  cairo_fill(cr);
+  cairo_set_source_rgb(cr, 0.1, 0.1, 0.1);
+  cairo_move_to(cr, x, y);
+  cairo_show_text(cr, text.c_str());
+}
+
+std::string fmt_time(double t) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "t = %.3f s", t);
+  return buf;
+}
+
+}  // namespace
+
+PixelMap render_picture(const RenderJob& job, PluginLoader& loader, const RenderOptions& opt,
+                        const fs::path& out) {
+  const std::string ext = out.extension().string();
+  if (ext != ".png" && ext != ".svg")
+    throw std::runtime_error(out.string() + ": the picture must be a .png or .svg file");
+
+  std::unique_ptr<Simulation> sim;
+  if (job.scene) sim = std::make_unique<Simulation>(*job.scene, loader);
+
+  ViewBox view;
+  if (opt.view) {
+    view = *opt.view;
+  } else {
+    view = job.scene ? scene_view(*job.scene) : ViewBox{HUGE_VAL, HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+    const double r = job.scene ? 0.0 : 0.0;
+    for (const auto& run : job.runs) add_run_to_view(run, view, r);
+    if (view.empty()) view = ViewBox{};
+    if (!job.scene) view.pad(0.05);
+  }
+  const PixelMap map(view, opt.width);
+
+  double t = 0.0;
+  for (const auto& run : job.runs) t = std::max(t, run.t_end());
+  if (opt.time) t = *opt.time;
+
+  fs::create_directories(fs::absolute(out).parent_path());
+  std::unique_ptr<cairo_surface_t, CairoDeleter> surface(
+      ext == ".svg" ? cairo_svg_surface_create(out.c_str(), map.width, map.height)
+                    : cairo_image_surface_create(CAIRO_FORMAT_ARGB32, map.width, map.height));
+  if (cairo_surface_status(surface.get()) != CAIRO_STATUS_SUCCESS)
+    throw std::runtime_error(out.string() + ": cannot create the picture: " +
+                             cairo_status_to_string(cairo_surface_status(surface.get())));
+  std::unique_ptr<cairo_t, CairoDeleter> ctx(cairo_create(surface.get()));
+  cairo_t* cr = ctx.get();
+  cairo_set_source_rgb(cr, 0.97, 0.95, 0.90);
+  cairo_paint(cr);
+
+  // Obstacles: the distance field at time t.
+  if (opt.field && sim && sim->backend().has_distance()) {
+    const BackendInstance& be = sim->backend();
+    const FieldGrid g =
+        sample_field([&](double x, double y) { return be.distance(x, y, t, nullptr); }, map,
+                     ext == ".svg" ? 2 : 1);
+    draw_field(cr, map, g, contour_spacing(view));
+  }
+
+  // Particle radii and initial positions from the scene.
+  std::optional<State> s0;
+  if (job.scene) s0 = job.scene->initial_state();
+  auto radius_px = [&](std::size_t i) {
+    const double r = s0 && i < s0->size() ? s0->radius[static_cast<Eigen::Index>(i)] : 0.0;
+    return std::max(r * map.scale, 2.5);
+  };
+  auto position = [&](std::size_t i) -> Eigen::Vector2d {
+    if (!job.runs.empty() && i < job.runs[0].particles.size()) return job.runs[0].position(i, t);
+    return s0->x.col(static_cast<Eigen::Index>(i));
+  };
+  const std::size_t n_particles =
+      s0 ? s0->size() : (job.runs.empty() ? 0 : job.runs[0].particles.size());
+
+  // Springs and strands: the scene's pair and triple elements, between current positions.
+  if (sim) {
+    cairo_save(cr);
+    cairo_set_source_rgba(cr, 0.25, 0.25, 0.30, 0.75);
+    cairo_set_line_width(cr, 1.0);
+    for (const auto& f : sim->forces()) {
+      const uint32_t arity = f->plugin().table->arity;
+      if ((arity != 2 && arity != 3) || f->plugin().name() == "gravity") continue;
+      const auto& el = f->elements();
+      for (std::size_t e = 0; e + arity <= el.size(); e += arity)
+        for (uint32_t k = 0; k + 1 < arity; ++k) {
+          if (el[e + k] >= n_particles || el[e + k + 1] >= n_particles) continue;
+          const auto a = position(el[e + k]), b = position(el[e + k + 1]);
+          cairo_move_to(cr, map.px(a.x()), map.py(a.y()));
+          cairo_line_to(cr, map.px(b.x()), map.py(b.y()));
+        }
+    }
+    cairo_stroke(cr);
+    cairo_restore(cr);
+  }
+
+  // Trajectories, one colour family per run; later runs dashed so overlaps stay visible.
+  if (opt.trajectories)
+    for (std::size_t k = 0; k < job.runs.size(); ++k) {
+      const auto& run = job.runs[k];
+      cairo_save(cr);
+      cairo_set_line_width(cr, job.runs.size() > 1 ? 1.6 : 1.2);
+      cairo_set_line_join(cr, CAIRO_LINE_JOIN_ROUND);
+      if (k > 0) {
+        const double dash[2] = {6.0, 4.0};
+        cairo_set_dash(cr, dash, 2, 0);
+      }
+      for (std::size_t i = 0; i < run.particles.size(); ++i) {
+        const auto& p = run.particles[i];
+        if (p.size() < 2) continue;
+        double c[3];
+        particle_colour(k, i, c);
+        cairo_set_source_rgba(cr, c[0], c[1], c[2], 0.85);
+        cairo_move_to(cr, map.px(p[0].x), map.py(p[0].y));
+        for (std::size_t s = 1; s < p.size() && p[s].t <= t + 1e-12; ++s)
+          cairo_line_to(cr, map.px(p[s].x), map.py(p[s].y));
+        cairo_stroke(cr);
+      }
+      cairo_restore(cr);
+    }
+
+  // Contacts: a ring at the contact point and a tick along the normal.
+  if (opt.contacts)
+    for (std::size_t k = 0; k < job.runs.size(); ++k) {
+      cairo_save(cr);
+      cairo_set_line_width(cr, 1.3);
+      if (k == 0)
+        cairo_set_source_rgba(cr, 0.95, 0.50, 0.0, 0.9);
+      else
+        cairo_set_source_rgba(cr, 0.0, 0.55, 0.85, 0.9);
+      for (const auto& c : job.runs[k].contacts) {
+        if (c.t > t + 1e-12) continue;
+        const double x = map.px(c.x), y = map.py(c.y);
+        cairo_new_sub_path(cr);
+        cairo_arc(cr, x, y, 3.5, 0, 2 * M_PI);
+        cairo_move_to(cr, x, y);
+        cairo_line_to(cr, x + 10 * c.nx, y - 10 * c.ny);
+      }
+      cairo_stroke(cr);
+      cairo_restore(cr);
+    }
+
+  // Particles at time t (every run's, so a crosscheck shows where each backend ended).
+  auto disc = [&](double x, double y, double r, const double c[3]) {
+    cairo_new_sub_path(cr);
+    cairo_arc(cr, x, y, r, 0, 2 * M_PI);
+    cairo_set_source_rgb(cr, c[0], c[1], c[2]);
+    cairo_fill_preserve(cr);
+    cairo_set_source_rgb(cr, 0.08, 0.08, 0.08);
+    cairo_set_line_width(cr, 0.8);
+    cairo_stroke(cr);
+  };
+  if (job.runs.empty()) {
+    for (std::size_t i = 0; i < n_particles; ++i) {
+      double c[3];
+      particle_colour(0, i, c);
+      const auto p = position(i);
+      disc(map.px(p.x()), map.py(p.y()), radius_px(i), c);
+    }
+  } else {
+    for (std::size_t k = job.runs.size(); k-- > 0;)
+      for (std::size_t i = 0; i < job.runs[k].particles.size(); ++i) {
+        double c[3];
+        particle_colour(k, i, c);
+        const auto p = job.runs[k].position(i, t);
+        disc(map.px(p.x()), map.py(p.y()), radius_px(i), c);
+      }
+  }
+
+  // Title and legend.
+  std::string title = opt.title;
+  if (title.empty()) {
+    if (job.scene) title = job.scene->name.empty() ? job.scene->label : job.scene->name;
+    if (!job.runs.empty() || opt.time) title += (title.empty() ? "" : ", ") + fmt_time(t);
+  }
+  const double fs_px = std::clamp(map.width / 55.0, 10.0, 16.0);
+  if (!title.empty()) label(cr, 8, 6 + fs_px, title, fs_px);
+  if (job.runs.size() > 1)
+    for (std::size_t k = 0; k < job.runs.size(); ++k) {
+      const double y = 6 + fs_px * (2.6 + 1.5 * static_cast<double>(k));
+      double c[3];
+      particle_colour(k, 0, c);
+      std::string name = job.runs[k].label;
+      if (job.runs[k].summary.contains("backend"))
+        name += " (" + job.runs[k].summary["backend"].get<std::string>() + ")";
+      label(cr, 8 + 2.2 * fs_px, y, name, fs_px);
+      cairo_set_source_rgb(cr, c[0], c[1], c[2]);
+      cairo_rectangle(cr, 8, y - 0.75 * fs_px, 1.6 * fs_px, 0.75 * fs_px);
+      cairo_fill(cr);
+    }
+
+  ctx.reset();
+  if (ext == ".png") {
+    const cairo_status_t st = cairo_surface_write_to_png(surface.get(), out.c_str());
+    if (st != CAIRO_STATUS_SUCCESS)
+      throw std::runtime_error(out.string() + ": cannot write: " + cairo_status_to_string(st));
+  } else {
+    cairo_surface_finish(surface.get());
+    if (cairo_surface_status(surface.get()) != CAIRO_STATUS_SUCCESS)
+      throw std::runtime_error(out.string() + ": cannot write: " +
+                               cairo_status_to_string(cairo_surface_status(surface.get())));
+  }
+  return map;
+}
+
+}  // namespace pinsim

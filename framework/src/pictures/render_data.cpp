@@ -1,0 +1,326 @@
+#include "pictures/render_data.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace pinsim {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+/// Splits one CSV line of numbers; false if a field is not a number.
+bool parse_numbers(const std::string& line, std::vector<double>& out) {
+  out.clear();
+  const char* p = line.c_str();
+  while (*p) {
+    char* end = nullptr;
+    const double v = std::strtod(p, &end);
+    if (end == p) return false;
+    out.push_back(v);
+    p = end;
+    if (*p == ',')
+      ++p;
+    else if (*p == '\r' || *p == '\0')
+      break;
+    else
+      return false;
+  }
+  return true;
+}
+
+/// Reads a CSV file with the expected header; calls `row` with each line's numbers.
+template <class F>
+void read_csv(const fs::path& file, const std::string& header, std::size_t fields, F row) {
+  std::ifstream in(file);
+  if (!in) throw std::runtime_error(file.string() + ": cannot open");
+  std::string line;
+  if (!std::getline(in, line) || line.rfind(header, 0) != 0)
+    throw std::runtime_error(file.string() + ":1: expected the header '" + header + "'");
+  std::vector<double> v;
+  for (std::size_t n = 2; std::getline(in, line); ++n) {
+    if (line.empty()) continue;
+    if (!parse_numbers(line, v) || v.size() != fields)
+      throw std::runtime_error(file.string() + ":" + std::to_string(n) + ": expected " +
+                               std::to_string(fields) + " numbers");
+    row(v);
+  }
+}
+
+using Vec = Eigen::Vector2d;
+
+Vec vec(const json& j) { return Vec(j.at(0).get<double>(), j.at(1).get<double>()); }
+bool is_vec(const json& j, const char* key) {
+  return j.contains(key) && j[key].is_array() && j[key].size() == 2 && j[key][0].is_number();
+}
+
+/// A rigid placement p -> R(angle) p + offset.
+struct Pose {
+  double angle = 0;
+  Vec offset = Vec::Zero();
+  Vec operator()(const Vec& p) const {
+    const double c = std::cos(angle), s = std::sin(angle);
+    return Vec(c * p.x() - s * p.y(), s * p.x() + c * p.y()) + offset;
+  }
+  Pose then(const Pose& outer) const {  // outer(this(p))
+    Pose r;
+    r.angle = angle + outer.angle;
+    r.offset = outer(offset);
+    return r;
+  }
+};
+
+/// Adds points that bound a shape (discs as their four extreme points) placed by `pose`.
+void shape_points(const json& s, const Pose& outer, std::vector<Vec>& out) {
+  if (!s.is_object()) return;
+  Pose pose = outer;
+  if (s.contains("transform") && s["transform"].is_object()) {
+    Pose local;
+    const json& tr = s["transform"];
+    if (tr.contains("rotate") && tr["rotate"].is_number()) local.angle = tr["rotate"];
+    if (is_vec(tr, "translate")) local.offset = vec(tr["translate"]);
+    pose = local.then(outer);
+  }
+  const std::string type = s.value("type", "");
+  auto disc = [&](const Vec& c, double r) {
+    for (const Vec& d : {Vec(r, 0), Vec(-r, 0), Vec(0, r), Vec(0, -r)}) out.push_back(pose(c + d));
+  };
+  if (type == "half_plane") {
+    if (is_vec(s, "point")) out.push_back(pose(vec(s["point"])));
+    return;
+  }
+  if (is_vec(s, "center") && is_vec(s, "half_size")) {
+    const Vec c = vec(s["center"]), h = vec(s["half_size"]);
+    const double a = s.value("angle", 0.0), ca = std::cos(a), sa = std::sin(a);
+    for (const Vec& d :
+         {Vec(h.x(), h.y()), Vec(-h.x(), h.y()), Vec(h.x(), -h.y()), Vec(-h.x(), -h.y())})
+      out.push_back(pose(c + Vec(ca * d.x() - sa * d.y(), sa * d.x() + ca * d.y())));
+  } else if (is_vec(s, "center")) {
+    disc(vec(s["center"]), s.value("radius", 0.0) + 0.5 * s.value("thickness", 0.0));
+  }
+  if (is_vec(s, "a")) disc(vec(s["a"]), s.value("radius", s.value("radius_a", 0.0)));
+  if (is_vec(s, "b")) disc(vec(s["b"]), s.value("radius", s.value("radius_b", 0.0)));
+  if (s.contains("points") && s["points"].is_array())
+    for (const auto& p : s["points"])
+      if (p.is_array() && p.size() == 2) out.push_back(pose(vec(p)));
+  if (s.contains("shapes") && s["shapes"].is_array())
+    for (const auto& c : s["shapes"]) shape_points(c, pose, out);
+  if (s.contains("shape")) shape_points(s["shape"], pose, out);
+}
+
+}  // namespace
+
+ViewBox inverted_view() {
+  ViewBox v;
+  v.x0 = v.y0 = HUGE_VAL;
+  v.x1 = v.y1 = -HUGE_VAL;
+  return v;
+}
+double RunData::t_end() const {
+  double t = 0;
+  for (const auto& p : particles)
+    if (!p.empty()) t = std::max(t, p.back().t);
+  return t;
+}
+
+Eigen::Vector2d RunData::position(std::size_t i, double t) const {
+  const auto& s = particles.at(i);
+  if (s.empty()) return Vec::Zero();
+  if (t <= s.front().t) return Vec(s.front().x, s.front().y);
+  if (t >= s.back().t) return Vec(s.back().x, s.back().y);
+  const auto it = std::upper_bound(s.begin(), s.end(), t,
+                                   [](double v, const TrajSample& a) { return v < a.t; });
+  const TrajSample& b = *it;
+  const TrajSample& a = *(it - 1);
+  const double w = b.t > a.t ? (t - a.t) / (b.t - a.t) : 1.0;
+  return Vec(a.x + w * (b.x - a.x), a.y + w * (b.y - a.y));
+}
+
+bool is_run_dir(const fs::path& dir) { return fs::is_regular_file(dir / "trajectory.csv"); }
+
+std::vector<fs::path> sub_run_dirs(const fs::path& dir) {
+  std::vector<fs::path> out;
+  if (!fs::is_directory(dir)) return out;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.is_directory() && is_run_dir(e.path())) out.push_back(e.path());
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+RunData load_run(const fs::path& dir) {
+  RunData r;
+  r.dir = dir;
+  r.label = fs::absolute(dir).lexically_normal().filename().string();
+  if (r.label.empty()) r.label = fs::absolute(dir).lexically_normal().parent_path().filename();
+  if (fs::exists(dir / "summary.json")) {
+    std::ifstream in(dir / "summary.json");
+    try {
+      r.summary = json::parse(in);
+    } catch (const json::exception& e) {
+      throw std::runtime_error((dir / "summary.json").string() + ": " + e.what());
+    }
+  }
+  read_csv(dir / "trajectory.csv", "t,particle,x,y,vx,vy", 6, [&](const std::vector<double>& v) {
+    const auto i = static_cast<std::size_t>(v[1]);
+    if (v[1] < 0 || i > 10000000) throw std::runtime_error("bad particle index");
+    if (r.particles.size() <= i) r.particles.resize(i + 1);
+    r.particles[i].push_back({v[0], v[2], v[3], v[4], v[5]});
+  });
+  if (fs::exists(dir / "events.csv")) {
+    // The obstacle column holds the obstacle's id (or index); other_particle may be empty.
+    const fs::path file = dir / "events.csv";
+    std::ifstream in(file);
+    std::string line;
+    std::getline(in, line);
+    if (line.rfind("t,particle,obstacle,other_particle,x,y,nx,ny,vn_before,vn_after", 0) != 0)
+      throw std::runtime_error(file.string() + ":1: unexpected header");
+    std::vector<std::string> f;
+    for (std::size_t n = 2; std::getline(in, line); ++n) {
+      if (line.empty()) continue;
+      f.clear();
+      std::stringstream ss(line);
+      for (std::string x; std::getline(ss, x, ',');) f.push_back(x);
+      if (f.size() == 9 && line.back() == ',') f.emplace_back();
+      auto num = [&](std::size_t k) {
+        char* end = nullptr;
+        const double v = std::strtod(f[k].c_str(), &end);
+        if (f[k].empty() || *end != '\0')
+          throw std::runtime_error(file.string() + ":" + std::to_string(n) + ": field " +
+                                   std::to_string(k + 1) + " is not a number");
+        return v;
+      };
+      if (f.size() != 10)
+        throw std::runtime_error(file.string() + ":" + std::to_string(n) + ": expected 10 fields");
+      ContactMark c{};
+      c.t = num(0);
+      c.particle = static_cast<int64_t>(num(1));
+      c.obstacle_id = f[2];
+      c.obstacle = -1;
+      c.other = f[3].empty() ? -1 : static_cast<int64_t>(num(3));
+      c.x = num(4), c.y = num(5), c.nx = num(6), c.ny = num(7);
+      c.vn_before = num(8), c.vn_after = num(9);
+      r.contacts.push_back(c);
+    }
+  }
+  return r;
+}
+
+std::optional<Scene> run_scene(const RunData& run, const std::vector<std::string>& overrides) {
+  const fs::path stored = run.dir / "scene.json";
+  if (fs::is_regular_file(stored)) {
+    std::ifstream in(stored);
+    std::stringstream text;
+    text << in.rdbuf();
+    fs::path base = run.dir;
+    if (run.summary.is_object() && run.summary.contains("scene_dir") &&
+        run.summary["scene_dir"].is_string())
+      base = run.summary["scene_dir"].get<std::string>();
+    return parse_scene(text.str(), stored.string(), base, overrides);
+  }
+  const fs::path file = run_scene_file(run);
+  if (file.empty()) return std::nullopt;
+  return load_scene(file, overrides);
+}
+
+fs::path run_scene_file(const RunData& run) {
+  if (!run.summary.is_object() || !run.summary.contains("scene") ||
+      !run.summary["scene"].is_string())
+    return {};
+  const fs::path s = run.summary["scene"].get<std::string>();
+  if (s.empty() || s.string().front() == '<') return {};  // the embedded scene
+  if (fs::is_regular_file(s)) return s;
+  for (fs::path d = fs::absolute(run.dir); !d.empty(); d = d.parent_path()) {
+    if (fs::is_regular_file(d / s)) return d / s;
+    if (d == d.parent_path()) break;
+  }
+  return {};
+}
+
+void ViewBox::add(double x, double y) {
+  if (!std::isfinite(x) || !std::isfinite(y)) return;
+  x0 = std::min(x0, x);
+  x1 = std::max(x1, x);
+  y0 = std::min(y0, y);
+  y1 = std::max(y1, y);
+}
+
+void ViewBox::pad(double frac) {
+  const double e = frac * std::max(x1 - x0, y1 - y0);
+  x0 -= e;
+  x1 += e;
+  y0 -= e;
+  y1 += e;
+}
+
+ViewBox obstacles_view(const json& backend_scene) {
+  ViewBox v = inverted_view();
+  std::vector<Vec> pts;
+  const json& obs = backend_scene.is_object() && backend_scene.contains("obstacles")
+                        ? backend_scene["obstacles"]
+                        : json::array();
+  for (const auto& o : obs) {
+    if (!o.is_object() || !o.contains("shape")) continue;
+    std::vector<Pose> poses{Pose{}};
+    if (o.contains("motion") && o["motion"].is_object()) {
+      const json& m = o["motion"];
+      if (m.value("type", "") == "flipper" && is_vec(m, "pivot")) {
+        poses.clear();
+        for (const char* k : {"rest_angle", "raised_angle"})
+          poses.push_back(Pose{m.value(k, 0.0), vec(m["pivot"])});
+      } else if (is_vec(m, "offset")) {
+        poses.push_back(Pose{0.0, vec(m["offset"])});
+      }
+    }
+    for (const Pose& p : poses) shape_points(o["shape"], p, pts);
+  }
+  for (const Vec& p : pts) v.add(p.x(), p.y());
+  return v;
+}
+
+ViewBox scene_view(const Scene& scene) {
+  ViewBox v = obstacles_view(scene.backend_scene);
+  const State s = scene.initial_state();
+  for (Eigen::Index k = 0; k < s.x.cols(); ++k) {
+    const double r = s.radius[k];
+    v.add(s.x(0, k) - r, s.x(1, k) - r);
+    v.add(s.x(0, k) + r, s.x(1, k) + r);
+  }
+  if (v.empty()) v = ViewBox{};
+  if (v.x1 - v.x0 < 1e-9 || v.y1 - v.y0 < 1e-9) {
+    const double cx = 0.5 * (v.x0 + v.x1), cy = 0.5 * (v.y0 + v.y1);
+    v = ViewBox{cx - 1, cy - 1, cx + 1, cy + 1};
+  }
+  v.pad(0.03);
+  return v;
+}
+
+void add_run_to_view(const RunData& run, ViewBox& view, double r) {
+  for (const auto& p : run.particles)
+    for (const auto& s : p) {
+      view.add(s.x - r, s.y - r);
+      view.add(s.x + r, s.y + r);
+    }
+}
+
+PixelMap::PixelMap(const ViewBox& v, int w) : view(v), width(std::max(w, 16)) {
+  scale = width / (v.x1 - v.x0);
+  height = std::max(16, static_cast<int>(std::lround((v.y1 - v.y0) * scale)));
+}
+
+json PixelMap::to_json() const {
+  return {{"x0", view.x0},  {"y0", view.y0},    {"x1", view.x1}, {"y1", view.y1},
+          {"width", width}, {"height", height}, {"scale", scale}};
+}
+
+ViewBox parse_view(const std::string& text) {
+  std::vector<double> v;
+  if (!parse_numbers(text, v) || v.size() != 4 || !(v[2] > v[0]) || !(v[3] > v[1]))
+    throw std::invalid_argument("--view: expected x0,y0,x1,y1 with x1 > x0 and y1 > y0, got '" +
+                                text + "'");
+  return ViewBox{v[0], v[1], v[2], v[3]};
+}
+
+}  // namespace pinsim

@@ -1,0 +1,331 @@
+#include "tools/bench.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <limits>
+#include <map>
+#include <optional>
+
+#include "core/json_read.hpp"
+#include "core/simulation.hpp"
+#include "tools/bench_answer.hpp"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace pinsim::bench {
+namespace {
+
+constexpr double kInf = std::numeric_limits<double>::infinity();
+
+/// One point of the sweep.
+struct Point {
+  std::size_t index;
+  std::size_t case_index;
+  json backend;  ///< {"name":..., "params":...} or null (the scene's)
+  std::string integrator;
+  double dt;
+};
+
+struct Case {
+  std::string name;
+  json doc;  ///< the scene document
+  fs::path base;
+  json answer;     ///< closed form spec, or null
+  json reference;  ///< {"integrator", "dt", "sample_every"} or null
+};
+
+std::vector<std::pair<std::string, json>> settings(const Point& p, bool timing) {
+  std::vector<std::pair<std::string, json>> set = {
+      {"time.dt", p.dt},
+      {"integrator", p.integrator},
+      {"checks.energy_every", timing ? json(1000000000) : json(1)},
+      {"checks.energy_blowup", 1e300}};
+  if (!p.backend.is_null()) set.emplace_back("backend", p.backend);
+  return set;
+}
+
+std::string backend_name(const json& b, const json& doc) {
+  if (b.is_object()) return b.value("name", std::string("?"));
+  if (doc.contains("backend")) {
+    const json& d = doc["backend"];
+    return d.is_string() ? d.get<std::string>() : d.value("name", std::string("none"));
+  }
+  return "none";
+}
+
+/// Positions of all particles at the sample times k * every, k = 1.. (reference runs).
+using Samples = std::vector<Eigen::Matrix2Xd>;
+
+Samples reference_samples(const Case& c, const json& backend, PluginLoader& loader) {
+  const json& r = c.reference;
+  Point p{0, 0, backend, r.value("integrator", std::string("rk4")), r.value("dt", 1e-5)};
+  const Scene scene = sweep::make_scene(c.doc, settings(p, true), c.name + " (reference)", c.base);
+  const double every = r.value("sample_every", scene.duration / 10.0);
+  Simulation sim(scene, loader);
+  Samples out;
+  const uint64_t N = scene.steps();
+  const double per = every / p.dt;
+  for (uint64_t n = 1; n <= N; ++n) {
+    sim.step();
+    sim.events().clear();
+    const double k = static_cast<double>(n) / per;
+    if (std::abs(k - std::round(k)) < 1e-9 * static_cast<double>(n) && std::round(k) >= 1)
+      out.push_back(sim.state().x);
+  }
+  spdlog::info("{}: reference run ({}, dt = {}) on {}: {} samples", c.name, p.integrator, p.dt,
+               backend_name(backend, c.doc), out.size());
+  return out;
+}
+
+struct Result {
+  std::string status = "ok";
+  uint64_t steps = 0;
+  double t_med = kInf, t_min = kInf, err_final = kInf, err_max = kInf, drift = kInf;
+  uint64_t force_evals = 0, jac_evals = 0, contacts = 0;
+};
+
+Result run_point(const Case& c, const Point& p, int repeats, PluginLoader& loader,
+                 const Samples* ref) {
+  Result res;
+  const Scene acc = sweep::make_scene(c.doc, settings(p, false), c.name, c.base);
+  std::optional<Answer> answer;
+  if (!c.answer.is_null()) answer.emplace(c.answer, acc.initial_state(), c.name + ": answer");
+  const double every =
+      ref ? c.reference.value("sample_every", acc.duration / 10.0) : 0.0;  // reference samples
+  // Accuracy run (untimed): error every step against the closed form, or at the reference
+  // samples; energy drift checked every step.
+  try {
+    Simulation sim(acc, loader);
+    const uint64_t N = acc.steps();
+    double emax = 0.0, efin = 0.0;
+    std::size_t k = 0;
+    for (uint64_t n = 1; n <= N; ++n) {
+      sim.step();
+      res.contacts += sim.events().size();
+      sim.events().clear();
+      double e = -1.0;
+      if (answer) {
+        e = (sim.state().x.col(static_cast<Eigen::Index>(answer->particle())) -
+             answer->position(sim.state().t))
+                .norm();
+      } else if (ref) {
+        const double kk = sim.state().t / every;
+        if (std::abs(kk - std::round(kk)) < 1e-6 && std::round(kk) >= 1 && k < ref->size()) {
+          e = ((sim.state().x - (*ref)[k]).colwise().norm()).maxCoeff();
+          ++k;
+        }
+      }
+      if (e >= 0.0) {
+        emax = std::max(emax, e);
+        efin = e;
+      }
+    }
+    if (ref && k != ref->size())
+      throw SceneError(c.name + ": dt = " + sweep::num(p.dt) + " does not divide the reference's " +
+                       "sample_every = " + sweep::num(every));
+    res.err_max = emax;
+    res.err_final = efin;
+    res.drift = sim.energy_complete() ? sim.max_energy_drift() : std::nan("");
+    res.steps = N;
+    res.force_evals = sim.force_evaluations();
+    res.jac_evals = sim.jacobian_evaluations();
+  } catch (const NumericError& e) {
+    res.status = fmt::format("numeric error at step {} particle {}", e.step, e.particle);
+    return res;
+  }
+  // Timed runs: only the step loop, no checks beyond the per-step NaN test.
+  const Scene timed = sweep::make_scene(c.doc, settings(p, true), c.name, c.base);
+  std::vector<double> times;
+  for (int r = 0; r < std::max(1, repeats); ++r) {
+    Simulation sim(timed, loader);
+    const uint64_t N = timed.steps();
+    const auto t0 = std::chrono::steady_clock::now();
+    for (uint64_t n = 0; n < N; ++n) {
+      sim.step();
+      sim.events().clear();
+    }
+    times.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+  }
+  std::sort(times.begin(), times.end());
+  res.t_min = times.front();
+  const std::size_t m = times.size();
+  res.t_med = m % 2 ? times[m / 2] : 0.5 * (times[m / 2 - 1] + times[m / 2]);
+  return res;
+}
+
+}  // namespace
+
+const std::vector<std::string>& columns() {
+  static const std::vector<std::string> c = {
+      "point",        "case",        "answer",         "backend",    "integrator",  "dt",
+      "steps",        "repeats",     "time_median_s",  "time_min_s", "error_final", "error_max",
+      "energy_drift", "force_evals", "jacobian_evals", "contacts",   "status"};
+  return c;
+}
+
+int run(const Options& o) {
+  const sweep::Config cfg = sweep::load_config(o.config);
+  const json& d = cfg.doc;
+  const std::string where = cfg.file.string();
+  if (!d.contains("cases") || !d["cases"].is_array())
+    throw SceneError(where + ".cases: expected a list of cases");
+  check_keys(d, {"$schema", "description", "cases", "integrators", "backends", "dt", "repeats"},
+             {where, ""});
+  const int repeats = o.repeats >= 0 ? o.repeats : d.value("repeats", 3);
+
+  std::vector<Case> cases;
+  std::vector<Point> points;
+  for (std::size_t ci = 0; ci < d["cases"].size(); ++ci) {
+    const json& cj = d["cases"][ci];
+    const std::string cw = where + ": cases[" + std::to_string(ci) + "]";
+    check_keys(cj, {"name", "scene", "answer", "reference", "dt", "integrators", "backends"},
+               Loc{where, "cases"}[ci]);
+    Case c;
+    c.name = cj.value("name", "case" + std::to_string(ci));
+    if (!cj.contains("scene")) throw SceneError(cw + ".scene: required");
+    c.doc = sweep::scene_doc(cfg, cj["scene"], c.base);
+    c.answer = cj.value("answer", json());
+    c.reference = cj.value("reference", json());
+    if (c.answer.is_null() == c.reference.is_null())
+      throw SceneError(cw + ": give exactly one of \"answer\" (closed form) or \"reference\"");
+    // a misspelt optional key (damping_ratio, floor, ...) would silently change the answer
+    const Loc at = Loc{where, "cases"}[ci];
+    if (c.answer.is_object()) {
+      const std::string type = c.answer.value("type", std::string());
+      if (type == "projectile")
+        check_keys(c.answer, {"type", "particle", "g"}, at / "answer");
+      else if (type == "harmonic")
+        check_keys(c.answer, {"type", "particle", "omega", "damping_ratio", "center"},
+                   at / "answer");
+      else if (type == "bouncing_ball")
+        check_keys(c.answer, {"type", "particle", "floor", "g", "restitution"}, at / "answer");
+      else if (type == "ball_in_box")
+        check_keys(c.answer, {"type", "particle", "min", "max"}, at / "answer");
+    }
+    if (c.reference.is_object())
+      check_keys(c.reference, {"integrator", "dt", "sample_every"}, at / "reference");
+    const auto dts =
+        sweep::numbers(cj.contains("dt") ? cj["dt"] : d.value("dt", json()), cw + ".dt");
+    const auto integs = sweep::list_or(cj, d, "integrators", json::array({"symplectic_euler"}));
+    const auto backends = sweep::list_or(cj, d, "backends", json::array({json()}));
+    for (const auto& b : backends)
+      for (const auto& in : integs)
+        for (double dt : dts) {
+          json bj = b.is_string() ? json{{"name", b}} : b;
+          points.push_back({points.size(), cases.size(), bj, in.get<std::string>(), dt});
+        }
+    cases.push_back(std::move(c));
+  }
+
+  PluginLoader loader(plugin_search_dirs());
+  std::map<std::pair<std::size_t, std::string>, Samples> refs;
+  sweep::Table t;
+  t.header = columns();
+  int code = 0;
+  std::size_t mine = 0;
+  for (const Point& p : points) mine += o.shard.owns(p.index);
+  spdlog::info("{}: {} points, this shard ({}/{}) runs {}", where, points.size(), o.shard.index,
+               o.shard.count, mine);
+  for (const Point& p : points) {
+    if (!o.shard.owns(p.index)) continue;
+    const Case& c = cases[p.case_index];
+    const std::string bname = backend_name(p.backend, c.doc);
+    const Samples* ref = nullptr;
+    if (!c.reference.is_null()) {
+      auto key = std::make_pair(p.case_index, p.backend.dump());
+      if (!refs.count(key)) refs[key] = reference_samples(c, p.backend, loader);
+      ref = &refs[key];
+    }
+    Result r;
+    try {
+      r = run_point(c, p, repeats, loader, ref);
+    } catch (const PluginError& e) {
+      r.status = std::string("plugin error: ") + e.what();
+    }
+    if (r.status != "ok") code = 1;
+    std::replace(r.status.begin(), r.status.end(), ',', ';');
+    spdlog::info("[{}/{}] {} {} {} dt={} err_max={} time={}s {}", p.index + 1, points.size(),
+                 c.name, bname, p.integrator, p.dt, sweep::num(r.err_max), sweep::num(r.t_med),
+                 r.status);
+    t.rows.push_back({std::to_string(p.index), c.name,
+                      c.answer.is_null() ? "reference" : c.answer.value("type", "?"), bname,
+                      p.integrator, sweep::num(p.dt), std::to_string(r.steps),
+                      std::to_string(repeats), sweep::num(r.t_med), sweep::num(r.t_min),
+                      sweep::num(r.err_final), sweep::num(r.err_max), sweep::num(r.drift),
+                      std::to_string(r.force_evals), std::to_string(r.jac_evals),
+                      std::to_string(r.contacts), r.status});
+  }
+  const fs::path csv = o.out / ("bench" + o.shard.suffix() + ".csv");
+  t.write(csv);
+  spdlog::info("wrote {}", csv.string());
+  if (o.shard.count == 1)
+    report(t, o.out);
+  else
+    spdlog::info("shard done; after all shards: pinsim merge --out {} {}/bench.shard-*.csv",
+                 o.out.string(), o.out.string());
+  return code;
+}
+
+void report(const sweep::Table& t, const fs::path& out) {
+  const auto cc = t.col("case"), cb = t.col("backend"), ci = t.col("integrator"), cd = t.col("dt"),
+             cf = t.col("error_final"), cm = t.col("error_max"), ct = t.col("time_median_s"),
+             cs = t.col("status");
+  // series -> (dt, err_final, err_max, time)
+  std::map<std::string, std::map<std::string, std::vector<std::array<double, 4>>>> series;
+  for (const auto& r : t.rows) {
+    if (r[cs] != "ok") continue;
+    series[r[cc]][r[ci] + " / " + r[cb]].push_back(
+        {std::stod(r[cd]), std::stod(r[cf]), std::stod(r[cm]), std::stod(r[ct])});
+  }
+  std::cout << "\nobserved convergence order (least-squares slope of log error vs log dt)\n";
+  std::cout << fmt::format("{:<22} {:<34} {:>12} {:>12} {:>14}\n", "case", "integrator / backend",
+                           "order(max)", "order(final)", "best err_max");
+  for (auto& [cname, ss] : series) {
+    for (auto& [sname, pts] : ss) {
+      std::vector<double> dt, ef, em;
+      double best = kInf;
+      for (const auto& p : pts) {
+        dt.push_back(p[0]);
+        // errors at rounding level carry no order information
+        ef.push_back(p[1] > 1e-13 ? p[1] : std::nan(""));
+        em.push_back(p[2] > 1e-13 ? p[2] : std::nan(""));
+        best = std::min(best, p[2]);
+      }
+      std::cout << fmt::format("{:<22} {:<34} {:>12.3f} {:>12.3f} {:>14.3e}\n", cname, sname,
+                               sweep::loglog_slope(dt, em), sweep::loglog_slope(dt, ef), best);
+    }
+    // Work-precision figure: error on x, median time on y, log-log.
+    const fs::path script = out / ("work_precision_" + cname + ".gp");
+    std::ofstream gp(script);
+    gp << "set terminal svg size 900,600 dynamic\nset output 'work_precision_" << cname
+       << ".svg'\nset logscale xy\nset format x '10^{%L}'\nset format y '10^{%L}'\n"
+       << "set xlabel 'largest position error over the trajectory'\n"
+       << "set ylabel 'median wall time per run (s)'\nset title 'work-precision: " << cname
+       << "' noenhanced\nset key outside right\nset grid\nplot ";
+    int k = 0;
+    for (auto& [sname, pts] : ss) {
+      std::string file = "wp_" + cname + "_" + std::to_string(k) + ".dat";
+      std::ofstream dat(out / file);
+      dat << "# " << sname << ": error_max time_median_s dt\n";
+      for (const auto& p : pts)
+        if (p[2] > 0.0 && std::isfinite(p[2]) && p[3] > 0.0)
+          dat << sweep::num(p[2]) << ' ' << sweep::num(p[3]) << ' ' << sweep::num(p[0]) << '\n';
+      gp << (k ? ", \\\n     " : "") << "'" << file << "' using 1:2 with linespoints title '"
+         << sname << "' noenhanced";  // names hold '_', not subscripts
+      ++k;
+    }
+    gp << "\n";
+    gp.close();
+    if (sweep::run_gnuplot(script))
+      spdlog::info("figure: {}", (out / ("work_precision_" + cname + ".svg")).string());
+  }
+}
+
+}  // namespace pinsim::bench

@@ -1,0 +1,369 @@
+#include "tools/stress.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <fstream>
+#include <iostream>
+#include <limits>
+#include <map>
+#include <set>
+
+#include "core/json_read.hpp"
+#include "core/simulation.hpp"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace pinsim::stress {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+struct Case {
+  std::string name, kind;  ///< kind: stiffness | tunnelling | run
+  json doc;
+  fs::path base;
+  std::string stiffness_path;  ///< stiffness: the override path of the stiffness
+  double blowup = 1.0;         ///< energy growth that counts as a blow-up (x energy scale)
+  double pen_tol = 0.0;        ///< penetration deeper than this is a failure, length
+  /// A free particle farther than this from where it started has diverged (length; 0: off).
+  /// For bounded potentials (bending: |E| <= k/2) an unstable step makes the strand tumble
+  /// rather than blow its energy up, so the energy test alone cannot see the instability.
+  double displacement_limit = 0.0;
+};
+
+struct Point {
+  std::size_t index, case_index;
+  json backend;
+  std::string integrator;
+  double dt, stiffness = kNaN, speed = kNaN, thickness = kNaN;
+};
+
+// A ball of radius 0.05 at x = -1 flying at `speed` along +x at a wall (a box of the given
+// thickness centred on x = 0, 2 tall), for the time it needs to travel 2 units.
+json tunnelling_scene(double speed, double thickness, double dt) {
+  const double T = dt * std::ceil(2.0 / speed / dt);
+  return {{"time", {{"dt", dt}, {"duration", T}}},
+          {"particles", {{{"x", {-1.0, 0.0}}, {"v", {speed, 0.0}}, {"radius", 0.05}}}},
+          {"obstacles",
+           {{{"id", "wall"},
+             {"shape",
+              {{"type", "box"}, {"center", {0.0, 0.0}}, {"half_size", {0.5 * thickness, 1.0}}}},
+             {"material", {{"restitution", 1.0}}}}}}};
+}
+
+double omega_max(const Scene& scene, PluginLoader& loader) {
+  Simulation sim(scene, loader);
+  Eigen::SparseMatrix<double> K, D;
+  sim.assemble_jacobians(sim.state(), K, D);
+  const State& s = sim.state();
+  std::vector<Eigen::Index> free;
+  for (Eigen::Index i = 0; i < 2 * static_cast<Eigen::Index>(s.size()); ++i)
+    if (s.inv_mass[i / 2] > 0.0) free.push_back(i);
+  const auto n = static_cast<Eigen::Index>(free.size());
+  if (n == 0 || n > 2000) return kNaN;
+  const Eigen::MatrixXd Kd(K);
+  Eigen::MatrixXd A(n, n);
+  for (Eigen::Index a = 0; a < n; ++a)
+    for (Eigen::Index b = 0; b < n; ++b)
+      A(a, b) =
+          -Kd(free[a], free[b]) * std::sqrt(s.inv_mass[free[a] / 2] * s.inv_mass[free[b] / 2]);
+  A = 0.5 * (A + A.transpose()).eval();
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(A, Eigen::EigenvaluesOnly);
+  return std::sqrt(std::max(0.0, es.eigenvalues().maxCoeff()));
+}
+
+struct Outcome {
+  std::string cls = "stable";
+  long long bad_step = -1, particle = -1;
+  double max_pen = 0.0, drift = kNaN, wall = 0.0;
+  uint64_t steps = 0;
+};
+
+Outcome run_point(const Case& c, const Point& p, PluginLoader& loader) {
+  json doc = c.kind == "tunnelling" ? tunnelling_scene(p.speed, p.thickness, p.dt) : c.doc;
+  std::vector<std::pair<std::string, json>> set = {{"time.dt", p.dt},
+                                                   {"integrator", p.integrator},
+                                                   {"checks.energy_every", 1},
+                                                   {"checks.energy_blowup", c.blowup}};
+  if (!p.backend.is_null()) set.emplace_back("backend", p.backend);
+  if (!c.stiffness_path.empty()) set.emplace_back(c.stiffness_path, p.stiffness);
+  const Scene scene = sweep::make_scene(doc, set, c.name, c.base);
+  Outcome o;
+  Simulation sim(scene, loader);
+  const bool dist = sim.backend().has_distance();
+  const uint64_t N = scene.steps();
+  const Eigen::Matrix2Xd x0 = sim.state().x;
+  const auto t0 = std::chrono::steady_clock::now();
+  try {
+    for (uint64_t n = 1; n <= N && o.cls != "diverged"; ++n) {
+      sim.step();
+      sim.events().clear();
+      const State& s = sim.state();
+      if (c.displacement_limit > 0.0)
+        for (Eigen::Index i = 0; i < s.x.cols() && o.cls != "diverged"; ++i)
+          if (s.inv_mass[i] > 0.0 && !((s.x.col(i) - x0.col(i)).norm() <= c.displacement_limit)) {
+            o.cls = "diverged";
+            o.bad_step = static_cast<long long>(n);
+            o.particle = i;
+          }
+      if (dist) {
+        for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
+          if (!(s.inv_mass[i] > 0.0)) continue;
+          const double pen =
+              s.radius[i] - sim.backend().distance(s.x(0, i), s.x(1, i), s.t, nullptr);
+          if (pen > o.max_pen) o.max_pen = pen;
+          if (pen > c.pen_tol && o.cls == "stable") {
+            o.cls = "penetration";
+            o.bad_step = static_cast<long long>(n);
+            o.particle = i;
+          }
+        }
+      }
+      if (c.kind == "tunnelling" && s.x(0, 0) > 0.0 && o.cls != "tunnelled") {
+        o.cls = "tunnelled";
+        o.bad_step = static_cast<long long>(n);
+        o.particle = 0;
+      }
+    }
+  } catch (const NumericError& e) {
+    const std::string what = e.what();
+    o.cls = what.rfind("energy blow-up", 0) == 0 ? "energy_blowup" : "nan";
+    o.bad_step = static_cast<long long>(e.step);
+    o.particle = e.particle;
+  }
+  o.wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  o.steps = sim.step_index();
+  o.drift = sim.energy_complete() ? sim.max_energy_drift() : kNaN;
+  return o;
+}
+
+int class_code(const std::string& c) {
+  if (c == "stable") return 0;
+  if (c == "penetration") return 1;
+  if (c == "tunnelled") return 2;
+  if (c == "energy_blowup" || c == "diverged") return 3;
+  if (c == "nan") return 4;
+  return 5;
+}
+
+}  // namespace
+
+double theory_limit(const std::string& in) {
+  if (in == "symplectic_euler" || in == "velocity_verlet") return 2.0;
+  if (in == "rk4") return 2.0 * std::sqrt(2.0);
+  if (in == "explicit_euler") return 0.0;
+  if (in == "implicit_euler") return std::numeric_limits<double>::infinity();
+  return kNaN;
+}
+
+const std::vector<std::string>& columns() {
+  static const std::vector<std::string> c = {
+      "point",        "case",      "kind",           "backend",  "integrator",
+      "dt",           "stiffness", "omega_max",      "h_omega",  "speed",
+      "thickness",    "class",     "first_bad_step", "particle", "max_penetration",
+      "energy_drift", "steps",     "wall_s"};
+  return c;
+}
+
+int run(const Options& o) {
+  const sweep::Config cfg = sweep::load_config(o.config);
+  const json& d = cfg.doc;
+  const std::string where = cfg.file.string();
+  if (!d.contains("cases") || !d["cases"].is_array())
+    throw SceneError(where + ".cases: expected a list of cases");
+  check_keys(d,
+             {"$schema", "description", "cases", "integrators", "backends", "dt", "energy_blowup",
+              "penetration_tolerance"},
+             {where, ""});
+  std::vector<Case> cases;
+  std::vector<Point> points;
+  for (std::size_t ci = 0; ci < d["cases"].size(); ++ci) {
+    const json& cj = d["cases"][ci];
+    const std::string cw = where + ": cases[" + std::to_string(ci) + "]";
+    check_keys(cj,
+               {"name", "kind", "scene", "dt", "integrators", "backends", "energy_blowup",
+                "penetration_tolerance", "displacement_limit", "stiffness", "speeds", "thickness"},
+               Loc{where, "cases"}[ci]);
+    Case c;
+    c.name = cj.value("name", "case" + std::to_string(ci));
+    c.kind = cj.value("kind", std::string("run"));
+    c.blowup = cj.value("energy_blowup", d.value("energy_blowup", 1.0));
+    c.pen_tol = cj.value("penetration_tolerance", d.value("penetration_tolerance", 1e-3));
+    c.displacement_limit = cj.value("displacement_limit", 0.0);
+    if (c.kind != "tunnelling") {
+      if (!cj.contains("scene")) throw SceneError(cw + ".scene: required");
+      c.doc = sweep::scene_doc(cfg, cj["scene"], c.base);
+    } else {
+      c.base = cfg.dir;
+    }
+    const auto dts =
+        sweep::numbers(cj.contains("dt") ? cj["dt"] : d.value("dt", json()), cw + ".dt");
+    const auto integs = sweep::list_or(cj, d, "integrators", json::array({"symplectic_euler"}));
+    const auto backends = sweep::list_or(cj, d, "backends", json::array({json()}));
+    std::vector<double> ks = {kNaN}, speeds = {kNaN}, thick = {kNaN};
+    if (c.kind == "stiffness") {
+      if (!cj.contains("stiffness") || !cj["stiffness"].is_object())
+        throw SceneError(cw + ".stiffness: expected {\"path\": ..., \"values\": [...]}");
+      check_keys(cj["stiffness"], {"path", "values"}, Loc{where, "cases"}[ci] / "stiffness");
+      c.stiffness_path = cj["stiffness"].value("path", std::string());
+      ks = sweep::numbers(cj["stiffness"].value("values", json()), cw + ".stiffness.values");
+    } else if (c.kind == "tunnelling") {
+      speeds = sweep::numbers(cj.value("speeds", json()), cw + ".speeds");
+      thick = sweep::numbers(cj.value("thickness", json()), cw + ".thickness");
+    } else if (c.kind != "run") {
+      throw SceneError(cw + ".kind: expected stiffness, tunnelling or run");
+    }
+    for (const auto& b : backends)
+      for (const auto& in : integs)
+        for (double k : ks)
+          for (double sp : speeds)
+            for (double th : thick)
+              for (double dt : dts) {
+                json bj = b.is_string() ? json{{"name", b}} : b;
+                Point p{points.size(), cases.size(), bj, in.get<std::string>(), dt};
+                p.stiffness = k;
+                p.speed = sp;
+                p.thickness = th;
+                points.push_back(p);
+              }
+    cases.push_back(std::move(c));
+  }
+
+  PluginLoader loader(plugin_search_dirs());
+  std::map<std::pair<std::size_t, double>, double> wmax;
+  sweep::Table t;
+  t.header = columns();
+  std::size_t mine = 0;
+  for (const Point& p : points) mine += o.shard.owns(p.index);
+  spdlog::info("{}: {} points, this shard ({}/{}) runs {}", where, points.size(), o.shard.index,
+               o.shard.count, mine);
+  for (const Point& p : points) {
+    if (!o.shard.owns(p.index)) continue;
+    const Case& c = cases[p.case_index];
+    double w = kNaN;
+    if (c.kind == "stiffness") {
+      auto key = std::make_pair(p.case_index, p.stiffness);
+      if (!wmax.count(key))
+        wmax[key] = omega_max(
+            sweep::make_scene(c.doc, {{c.stiffness_path, p.stiffness}}, c.name, c.base), loader);
+      w = wmax[key];
+    }
+    Outcome r;
+    try {
+      r = run_point(c, p, loader);
+    } catch (const std::exception& e) {
+      r.cls = std::string("error: ") + e.what();
+      std::replace(r.cls.begin(), r.cls.end(), ',', ';');
+      std::replace(r.cls.begin(), r.cls.end(), '\n', ' ');
+    }
+    std::string bname = p.backend.is_object() ? p.backend.value("name", "?") : "scene";
+    spdlog::info("[{}/{}] {} {} {} dt={} k={} v={} w={}: {} (step {}, particle {})", p.index + 1,
+                 points.size(), c.name, bname, p.integrator, p.dt, sweep::num(p.stiffness),
+                 sweep::num(p.speed), sweep::num(p.thickness), r.cls, r.bad_step, r.particle);
+    t.rows.push_back({std::to_string(p.index), c.name, c.kind, bname, p.integrator,
+                      sweep::num(p.dt), sweep::num(p.stiffness), sweep::num(w),
+                      sweep::num(p.dt * w), sweep::num(p.speed), sweep::num(p.thickness), r.cls,
+                      std::to_string(r.bad_step), std::to_string(r.particle), sweep::num(r.max_pen),
+                      sweep::num(r.drift), std::to_string(r.steps), sweep::num(r.wall)});
+  }
+  const fs::path csv = o.out / ("stress" + o.shard.suffix() + ".csv");
+  t.write(csv);
+  spdlog::info("wrote {}", csv.string());
+  if (o.shard.count == 1)
+    report(t, o.out);
+  else
+    spdlog::info("shard done; after all shards: pinsim merge --out {} {}/stress.shard-*.csv",
+                 o.out.string(), o.out.string());
+  return 0;
+}
+
+void report(const sweep::Table& t, const fs::path& out) {
+  const auto cc = t.col("case"), ck = t.col("kind"), cb = t.col("backend"),
+             ci = t.col("integrator"), cd = t.col("dt"), cs = t.col("stiffness"),
+             chw = t.col("h_omega"), cl = t.col("class"), csp = t.col("speed"),
+             cth = t.col("thickness"), cp = t.col("max_penetration"), ce = t.col("energy_drift");
+  // Stability limits: per (case, backend, integrator, stiffness), sorted by dt: the last
+  // h w with every smaller dt stable, and the first unstable h w.
+  std::map<std::string, std::vector<std::pair<double, const std::vector<std::string>*>>> groups;
+  for (const auto& r : t.rows)
+    if (r[ck] == "stiffness")
+      groups[r[cc] + "|" + r[cb] + "|" + r[ci] + "|" + r[cs]].push_back({std::stod(r[cd]), &r});
+  if (!groups.empty()) {
+    std::cout << "\nempirical stability limit (h w_max, w_max from the Jacobian at t = 0) vs "
+                 "theory for an undamped oscillator\n"
+              << fmt::format("{:<18} {:<8} {:<17} {:>10} {:>13} {:>15} {:>10}\n", "case", "backend",
+                             "integrator", "stiffness", "last stable", "first unstable", "theory");
+  }
+  for (auto& [key, v] : groups) {
+    std::sort(v.begin(), v.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+    double last = kNaN, first_bad = kNaN;
+    for (const auto& [dt, r] : v) {
+      if ((*r)[cl] == "stable" || (*r)[cl] == "penetration") {
+        if (std::isnan(first_bad)) last = std::stod((*r)[chw]);
+      } else if (std::isnan(first_bad)) {
+        first_bad = std::stod((*r)[chw]);
+      }
+    }
+    const auto& r0 = *v.front().second;
+    const double th = theory_limit(r0[ci]);
+    std::cout << fmt::format("{:<18} {:<8} {:<17} {:>10} {:>13} {:>15} {:>10}\n", r0[cc], r0[cb],
+                             r0[ci], r0[cs], std::isnan(last) ? "none" : sweep::num(last),
+                             std::isnan(first_bad) ? "none" : sweep::num(first_bad),
+                             th == 0.0 ? "unstable" : sweep::num(th));
+  }
+  // Tunnelling, contact and long runs: one line per run.
+  bool header = false;
+  for (const auto& r : t.rows) {
+    if (r[ck] == "stiffness") continue;
+    if (!header) {
+      std::cout << "\n"
+                << fmt::format("{:<14} {:<8} {:<17} {:>9} {:>8} {:>10} {:<14} {:>12} {:>12}\n",
+                               "case", "backend", "integrator", "dt", "speed", "thickness", "class",
+                               "max_pen", "energy_drift");
+      header = true;
+    }
+    std::cout << fmt::format("{:<14} {:<8} {:<17} {:>9} {:>8} {:>10} {:<14} {:>12} {:>12}\n", r[cc],
+                             r[cb], r[ci], r[cd], r[csp], r[cth], r[cl].substr(0, 40), r[cp],
+                             r[ce]);
+  }
+  // Heat maps: class over (dt, stiffness) per integrator, or (speed, thickness) per backend.
+  std::map<std::string, std::vector<const std::vector<std::string>*>> maps;
+  for (const auto& r : t.rows)
+    if (r[ck] == "stiffness")
+      maps[r[cc] + "_" + r[ci]].push_back(&r);
+    else if (r[ck] == "tunnelling")
+      maps[r[cc] + "_" + r[cb] + "_" + r[ci]].push_back(&r);
+  for (const auto& [name, rows] : maps) {
+    const bool stiff = (*rows.front())[ck] == "stiffness";
+    std::ofstream dat(out / ("heat_" + name + ".dat"));
+    dat << "# x y class_code (0 stable, 1 penetration, 2 tunnelled, 3 energy blow-up, 4 NaN, "
+           "5 error)\n";
+    for (const auto* r : rows)
+      dat << (stiff ? (*r)[cd] : (*r)[csp]) << ' ' << (stiff ? (*r)[cs] : (*r)[cth]) << ' '
+          << class_code((*r)[cl]) << '\n';
+    dat.close();
+    const fs::path script = out / ("heat_" + name + ".gp");
+    std::ofstream gp(script);
+    gp << "set terminal svg size 800,600 dynamic\nset output 'heat_" << name << ".svg'\n"
+       << "set logscale xy\nset xlabel '" << (stiff ? "dt (s)" : "ball speed (units/s)")
+       << "'\nset ylabel '" << (stiff ? "stiffness" : "wall thickness") << "'\nset title '" << name
+       << "' noenhanced\nset cbrange "
+          "[0:5]\n"
+       << "set palette defined (0 '#1a9850', 1 '#fee08b', 2 '#fdae61', 3 '#d73027', 4 "
+          "'#67001f', 5 '#404040')\n"
+       << "set cbtics ('stable' 0, 'penetration' 1, 'tunnelled' 2, 'unstable' 3, 'NaN' 4, "
+          "'error' 5)\n"
+       << "plot 'heat_" << name << ".dat' using 1:2:3 with points pt 5 ps 3 palette notitle\n";
+    gp.close();
+    if (sweep::run_gnuplot(script))
+      spdlog::info("figure: {}", (out / ("heat_" + name + ".svg")).string());
+  }
+}
+
+}  // namespace pinsim::stress

@@ -1,0 +1,196 @@
+#include "tools/sweep.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <fstream>
+#include <limits>
+#include <sstream>
+
+#include "core/scene_error.hpp"
+
+namespace fs = std::filesystem;
+
+namespace pinsim::sweep {
+
+std::string Shard::suffix() const {
+  if (count == 1) return "";
+  return ".shard-" + std::to_string(index) + "-of-" + std::to_string(count);
+}
+
+Shard parse_shard(const std::string& text) {
+  Shard s;
+  const auto slash = text.find('/');
+  try {
+    if (slash == std::string::npos) throw std::invalid_argument("no slash");
+    std::size_t a = 0, b = 0;
+    s.index = std::stoi(text.substr(0, slash), &a);
+    s.count = std::stoi(text.substr(slash + 1), &b);
+    if (a != slash || b != text.size() - slash - 1) throw std::invalid_argument("junk");
+  } catch (const std::exception&) {
+    throw SceneError("--shard " + text + ": expected i/N, e.g. 0/4 (shard i of N, 0 <= i < N)");
+  }
+  if (s.count < 1 || s.index < 0 || s.index >= s.count)
+    throw SceneError("--shard " + text + ": need N >= 1 and 0 <= i < N");
+  return s;
+}
+
+std::size_t Table::col(const std::string& name) const {
+  for (std::size_t i = 0; i < header.size(); ++i)
+    if (header[i] == name) return i;
+  throw SceneError("CSV table has no column '" + name + "'");
+}
+
+namespace {
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> out;
+  std::string cur;
+  std::stringstream ss(line);
+  while (std::getline(ss, cur, ',')) out.push_back(cur);
+  if (!line.empty() && line.back() == ',') out.emplace_back();
+  return out;
+}
+}  // namespace
+
+void Table::write(const fs::path& file) const {
+  if (file.has_parent_path()) fs::create_directories(file.parent_path());
+  std::ofstream out(file);
+  auto line = [&out](const std::vector<std::string>& cells) {
+    for (std::size_t i = 0; i < cells.size(); ++i) out << (i ? "," : "") << cells[i];
+    out << '\n';
+  };
+  line(header);
+  for (const auto& r : rows) line(r);
+  if (!out) throw SceneError(file.string() + ": cannot be written");
+}
+
+Table Table::read(const fs::path& file) {
+  std::ifstream in(file);
+  if (!in) throw SceneError(file.string() + ": cannot be read");
+  Table t;
+  std::string line;
+  if (!std::getline(in, line)) throw SceneError(file.string() + ": empty, expected a CSV header");
+  t.header = split(line);
+  while (std::getline(in, line))
+    if (!line.empty()) t.rows.push_back(split(line));
+  return t;
+}
+
+Table merge(const std::vector<fs::path>& files) {
+  if (files.empty()) throw SceneError("merge: no CSV files given");
+  Table all = Table::read(files[0]);
+  for (std::size_t i = 1; i < files.size(); ++i) {
+    Table t = Table::read(files[i]);
+    if (t.header != all.header)
+      throw SceneError(files[i].string() + ": its CSV header differs from " + files[0].string() +
+                       "'s (a different sweep?)");
+    all.rows.insert(all.rows.end(), t.rows.begin(), t.rows.end());
+  }
+  std::stable_sort(all.rows.begin(), all.rows.end(), [](const auto& a, const auto& b) {
+    return std::strtoull(a[0].c_str(), nullptr, 10) < std::strtoull(b[0].c_str(), nullptr, 10);
+  });
+  return all;
+}
+
+Config load_config(const fs::path& file) {
+  std::ifstream in(file);
+  if (!in) throw SceneError(file.string() + ": sweep config not found or unreadable");
+  Config c;
+  c.file = file;
+  c.dir = fs::absolute(file).parent_path();
+  try {
+    c.doc = nlohmann::json::parse(in, nullptr, true, /*ignore_comments=*/true);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw SceneError(file.string() + ": not valid JSON: " + e.what());
+  }
+  if (!c.doc.is_object()) throw SceneError(file.string() + ": expected a JSON object");
+  return c;
+}
+
+nlohmann::json scene_doc(const Config& cfg, const nlohmann::json& spec, fs::path& base_dir) {
+  if (spec.is_object()) {
+    base_dir = cfg.dir;
+    return spec;
+  }
+  if (!spec.is_string())
+    throw SceneError(cfg.file.string() + ": \"scene\" must be a file name or a scene object");
+  const fs::path p = cfg.dir / spec.get<std::string>();
+  std::ifstream in(p);
+  if (!in) throw SceneError(cfg.file.string() + ": scene " + p.string() + " not found");
+  base_dir = fs::absolute(p).parent_path();
+  try {
+    return nlohmann::json::parse(in, nullptr, true, true);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw SceneError(p.string() + ": not valid JSON: " + e.what());
+  }
+}
+
+Scene make_scene(nlohmann::json doc, const std::vector<std::pair<std::string, nlohmann::json>>& set,
+                 const std::string& label, const fs::path& base_dir) {
+  std::vector<std::string> overrides;
+  for (const auto& [path, value] : set) overrides.push_back(path + "=" + value.dump());
+  return parse_scene(doc.dump(), label, base_dir, overrides);
+}
+
+double loglog_slope(const std::vector<double>& x, const std::vector<double>& y) {
+  double n = 0, sx = 0, sy = 0, sxx = 0, sxy = 0;
+  for (std::size_t i = 0; i < x.size() && i < y.size(); ++i) {
+    if (!(x[i] > 0.0) || !(y[i] > 0.0) || !std::isfinite(x[i]) || !std::isfinite(y[i])) continue;
+    const double a = std::log(x[i]), b = std::log(y[i]);
+    n += 1;
+    sx += a;
+    sy += b;
+    sxx += a * a;
+    sxy += a * b;
+  }
+  const double den = n * sxx - sx * sx;
+  if (n < 2 || !(den > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  return (n * sxy - sx * sy) / den;
+}
+
+bool run_gnuplot(const fs::path& script) {
+  if (std::system("command -v gnuplot >/dev/null 2>&1") != 0) {
+    spdlog::warn(
+        "gnuplot not found: figure skipped (install Debian's gnuplot-nox, then run "
+        "`gnuplot {}`)",
+        script.string());
+    return false;
+  }
+  const std::string cmd =
+      "cd '" + script.parent_path().string() + "' && gnuplot '" + script.filename().string() + "'";
+  if (std::system(cmd.c_str()) != 0) {
+    spdlog::warn("gnuplot failed on {}: figure skipped", script.string());
+    return false;
+  }
+  return true;
+}
+
+std::vector<double> numbers(const nlohmann::json& j, const std::string& where) {
+  if (!j.is_array() || j.empty())
+    throw SceneError(where + ": expected a non-empty list of numbers");
+  std::vector<double> out;
+  for (const auto& x : j) {
+    if (!x.is_number() || !(x.get<double>() > 0.0))
+      throw SceneError(where + ": expected positive numbers, got " + x.dump());
+    out.push_back(x.get<double>());
+  }
+  return out;
+}
+
+std::vector<nlohmann::json> list_or(const nlohmann::json& a, const nlohmann::json& b,
+                                    const char* key, const nlohmann::json& def) {
+  const nlohmann::json& l = a.contains(key) ? a[key] : b.contains(key) ? b[key] : def;
+  return std::vector<nlohmann::json>(l.begin(), l.end());
+}
+
+std::string num(double x) {
+  if (std::isnan(x)) return "nan";
+  if (std::isinf(x)) return x > 0 ? "inf" : "-inf";
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", x);
+  return buf;
+}
+
+}  // namespace pinsim::sweep

@@ -1,0 +1,160 @@
+// Output files: complete, valid and kept when a run ends early (NaN, interrupt).
+#include <catch2/catch.hpp>
+#include <fstream>
+#include <sstream>
+
+#include "core/runner.hpp"
+#include "core/scene.hpp"
+#include "test_support.hpp"
+
+using namespace pinsim;
+using Catch::Matchers::Contains;
+namespace fs = std::filesystem;
+
+namespace {
+
+std::vector<std::string> lines(const fs::path& p) {
+  std::ifstream in(p);
+  std::vector<std::string> out;
+  for (std::string l; std::getline(in, l);) out.push_back(l);
+  return out;
+}
+
+// Three particles moving right at 1, 2, 3 units/s; the nan_force fixture turns particle
+// `bad` non-finite once its x passes 1.0.
+std::string nan_scene(int bad) {
+  return R"({
+    "time": {"dt": 0.01, "duration": 2.0},
+    "particles": [{"x": [0, 0], "v": [1, 0]}, {"x": [0, 1], "v": [2, 0]}, {"x": [0, 2], "v": [3, 0]}],
+    "forces": [{"type": "nan_force", "library": ")" PINSIM_TEST_FIXTURE_DIR
+         R"(/libfixture_nan_force.so", "params": {"bad": )" +
+         std::to_string(bad) + R"(, "threshold": 1.0}}],
+    "output": {"every": 5}
+  })";
+}
+
+}  // namespace
+
+TEST_CASE("run output: trajectory, events and summary are written") {
+  const auto dir = test::temp_dir("out");
+  const Scene s = parse_scene(R"({"time": {"dt": 0.01, "duration": 1.0},
+    "particles": [{"x": [0, 0], "v": [1, 2]}, {"x": [1, 0]}],
+    "forces": [{"type": "gravity"}], "output": {"every": 10}})",
+                              "out.json", ".");
+  PluginLoader loader(plugin_search_dirs());
+  RunSettings rs;
+  rs.out = dir;
+  const RunResult r = run_scene(s, loader, rs);
+  CHECK(r.exit_code == 0);
+  const auto traj = lines(dir / "trajectory.csv");
+  REQUIRE(traj.size() == 1 + 2 * 11);  // header + 2 particles x (t = 0, 0.1, ..., 1.0)
+  CHECK(traj[0] == "t,particle,x,y,vx,vy");
+  CHECK(traj[1] == "0,0,0,0,1,2");
+  CHECK(lines(dir / "events.csv").size() == 1);  // header only: no obstacles
+  const auto summary = nlohmann::json::parse(test::read_file(dir / "summary.json"));
+  CHECK(summary["status"] == "ok");
+  CHECK(summary["steps"] == 100);
+  CHECK(summary["backend"] == "none");
+  CHECK(summary["integrator"] == "symplectic_euler");
+  CHECK(summary["energy"]["start"].get<double>() == Approx(2.5));  // 1/2 (1 + 4), E_pot(0) = 0
+  CHECK(summary["versions"]["plugins"]["gravity"].is_string());
+}
+
+TEST_CASE("run output: an earlier run is not overwritten without --overwrite") {
+  const auto dir = test::temp_dir("keep");
+  test::write_file(dir / "trajectory.csv", "precious\n");
+  const Scene s = parse_scene(
+      R"({"time": {"dt": 0.1, "duration": 0.1}, "particles": [{"x": [0, 0]}]})", "k.json", ".");
+  PluginLoader loader(plugin_search_dirs());
+  RunSettings rs;
+  rs.out = dir;
+  REQUIRE_THROWS_WITH(run_scene(s, loader, rs), Contains("holds an earlier run"));
+  CHECK(test::read_file(dir / "trajectory.csv") == "precious\n");
+  rs.overwrite = true;
+  CHECK(run_scene(s, loader, rs).exit_code == 0);
+}
+
+TEST_CASE("run output: an unwritable output folder is an error before anything runs") {
+  const auto dir = test::temp_dir("unwritable");
+  test::write_file(dir / "a_file", "x");
+  const Scene s = parse_scene(
+      R"({"time": {"dt": 0.1, "duration": 0.1}, "particles": [{"x": [0, 0]}]})", "u.json", ".");
+  PluginLoader loader(plugin_search_dirs());
+  RunSettings rs;
+  rs.out = dir / "a_file" / "sub";
+  REQUIRE_THROWS_WITH(run_scene(s, loader, rs), Contains("cannot create output folder"));
+}
+
+TEST_CASE("NaN detection: reports the step, time, particle and plugin where it began") {
+  test::FpTrapsOff traps;  // the fixture makes a NaN on purpose
+  const auto dir = test::temp_dir("nan");
+  PluginLoader loader(plugin_search_dirs());
+  RunSettings rs;
+  rs.out = dir;
+  // Particle 2 moves at 3 units/s: x > 1 first after step 34 (x = 1.02), so the force at the
+  // start of step 35 is the first non-finite one.
+  const RunResult r = run_scene(parse_scene(nan_scene(2), "nan.json", "."), loader, rs);
+  CHECK(r.exit_code == 1);
+  const auto& e = r.summary["error"];
+  CHECK(e["kind"] == "numeric");
+  CHECK(e["particle"] == 2);
+  CHECK(e["step"] == 35);
+  CHECK(e["t"].get<double>() == Approx(0.34));
+  CHECK_THAT(e["message"].get<std::string>(),
+             Contains("non-finite force") && Contains("nan_force") && Contains("forces[0]"));
+  // What was written before the failure is intact: complete lines, a valid summary.
+  const auto summary = nlohmann::json::parse(test::read_file(dir / "summary.json"));
+  CHECK(summary["status"] == "error");
+  CHECK(summary["steps"] == 34);
+  const auto traj = lines(dir / "trajectory.csv");
+  CHECK(traj.size() == 1 + 3 * 7);  // t = 0, 0.05, ..., 0.30
+  for (const auto& l : traj) CHECK(std::count(l.begin(), l.end(), ',') == 5);
+}
+
+TEST_CASE("energy blow-up detection stops the run where it began") {
+  // Two unit masses on a zero-rest-length spring: reduced mass mu = 1/2, omega = sqrt(k/mu).
+  // Symplectic Euler is stable for h omega < 2. k = 1e4: omega = 141.4; h = 0.01 gives
+  // h omega = 1.41 (stable), h = 0.02 gives 2.83, where the amplification factor is
+  // |lambda| = (y^2 - 2 + sqrt((y^2 - 2)^2 - 4)) / 2 = 5.83 per step, y = h omega.
+  auto scene = [](double h) {
+    return R"({"time": {"dt": )" + std::to_string(h) + R"(, "duration": 2.0},
+      "particles": [{"x": [0, 0]}, {"x": [0.1, 0], "v": [0, 0.5]}],
+      "forces": [{"type": "linear_spring", "params": {"k": 1e4, "rest_length": 0},
+                  "elements": [[0, 1]]}],
+      "checks": {"energy_blowup": 1000, "energy_every": 1}})";
+  };
+  PluginLoader loader(plugin_search_dirs());
+  const RunResult ok = run_scene(parse_scene(scene(0.01), "stable.json", "."), loader, {});
+  CHECK(ok.exit_code == 0);
+  // Below the limit symplectic Euler's energy oscillates (here up to about 2x the scale, as
+  // y^2/4 = 0.5) but stays bounded over 200 steps.
+  CHECK(ok.summary["energy"]["max_relative_drift"].get<double>() < 3.0);
+
+  test::FpTrapsOff traps;
+  const RunResult bad = run_scene(parse_scene(scene(0.02), "unstable.json", "."), loader, {});
+  CHECK(bad.exit_code == 1);
+  const auto& e = bad.summary["error"];
+  CHECK(e["kind"] == "numeric");
+  CHECK_THAT(e["message"].get<std::string>(), Contains("energy blow-up"));
+  // Energy grows by about 5.83^2 = 34 per step: past 1000 x the start within a few steps.
+  CHECK(e["step"].get<int>() <= 4);
+  CHECK(e["particle"].get<int>() >= 0);
+}
+
+TEST_CASE("interrupted run: stops cleanly with valid files") {
+  const auto dir = test::temp_dir("interrupt");
+  std::atomic<bool> stop{true};
+  const Scene s = parse_scene(R"({"time": {"dt": 0.1, "duration": 10},
+    "particles": [{"x": [0, 0]}]})",
+                              "i.json", ".");
+  PluginLoader loader(plugin_search_dirs());
+  RunSettings rs;
+  rs.out = dir;
+  rs.stop = &stop;
+  const RunResult r = run_scene(s, loader, rs);
+  CHECK(r.exit_code == 130);
+  const auto summary = nlohmann::json::parse(test::read_file(dir / "summary.json"));
+  CHECK(summary["status"] == "interrupted");
+  CHECK(summary["steps"] == 0);
+  CHECK(lines(dir / "trajectory.csv").size() == 2);  // header + the initial state
+}

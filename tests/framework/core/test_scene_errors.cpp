@@ -1,0 +1,128 @@
+// Every kind of bad scene gets one error naming the file, the JSON path and what was
+// expected, before anything runs.
+#include <catch2/catch.hpp>
+
+#include "core/scene.hpp"
+#include "core/simulation.hpp"
+#include "test_support.hpp"
+
+using namespace pinsim;
+using Catch::Matchers::Contains;
+
+namespace {
+
+const char* kGood = R"({
+  "time": {"dt": 0.01, "duration": 1.0},
+  "particles": [{"x": [0, 0], "v": [1, 0], "mass": 1.0, "radius": 0.1}],
+  "forces": [{"type": "gravity", "params": {"g": [0, -9.81]}}]
+})";
+
+// Parses kGood with one override, then builds the simulation.
+void build(const std::vector<std::string>& set, const std::string& text = kGood) {
+  const Scene s = parse_scene(text, "bad.json", ".", set);
+  PluginLoader loader(plugin_search_dirs());
+  Simulation sim(s, loader);
+}
+
+}  // namespace
+
+TEST_CASE("scene errors: the good scene builds") { REQUIRE_NOTHROW(build({})); }
+
+TEST_CASE("scene errors: malformed JSON names file, line and column") {
+  REQUIRE_THROWS_WITH(build({}, "{\n  \"time\": {\"dt\": 0.01,, }\n}"),
+                      Contains("bad.json:2:") && Contains("malformed JSON"));
+}
+
+TEST_CASE("scene errors: comments are allowed") {
+  REQUIRE_NOTHROW(build({}, std::string("// a comment\n/* block */\n") + kGood));
+}
+
+TEST_CASE("scene errors: unknown force plugin") {
+  REQUIRE_THROWS_WITH(build({"forces[0].type=antigravity"}),
+                      Contains("bad.json: forces[0]") && Contains("unknown plugin 'antigravity'"));
+}
+
+TEST_CASE("scene errors: unknown backend") {
+  REQUIRE_THROWS_WITH(build({"backend=warpdrive"}),
+                      Contains("bad.json: backend") && Contains("unknown plugin 'warpdrive'"));
+}
+
+TEST_CASE("scene errors: a force used as a backend") {
+  REQUIRE_THROWS_WITH(build({"backend=gravity"}), Contains("is a force, not a backend"));
+}
+
+TEST_CASE("scene errors: unknown parameter names the key and the known ones") {
+  REQUIRE_THROWS_WITH(build({"forces[0].params.gee=1"}),
+                      Contains("bad.json: forces[0].params.gee: unknown parameter of plugin "
+                               "'gravity'") &&
+                          Contains("known:") && Contains("g"));
+}
+
+TEST_CASE("scene errors: wrong parameter type") {
+  REQUIRE_THROWS_WITH(build({"forces[0].params.g=\"down\""}),
+                      Contains("bad.json: forces[0].params.g: expected [x, y]"));
+}
+
+TEST_CASE("scene errors: unknown top-level and nested keys") {
+  REQUIRE_THROWS_WITH(build({"tiem={}"}), Contains("bad.json: tiem: unknown key"));
+  REQUIRE_THROWS_WITH(build({"time.dtt=0.1"}), Contains("bad.json: time.dtt: unknown key"));
+  REQUIRE_THROWS_WITH(build({"particles[0].velocity=[1,2]"}),
+                      Contains("bad.json: particles[0].velocity: unknown key"));
+}
+
+TEST_CASE("scene errors: dt must be > 0") {
+  REQUIRE_THROWS_WITH(build({"time.dt=0"}), Contains("bad.json: time.dt: must be > 0, got 0"));
+  REQUIRE_THROWS_WITH(build({"time.dt=-0.1"}), Contains("bad.json: time.dt: must be > 0"));
+  REQUIRE_THROWS_WITH(build({"time.dt=\"fast\""}),
+                      Contains("bad.json: time.dt: expected a number, got string"));
+}
+
+TEST_CASE("scene errors: duration must be >= 0") {
+  REQUIRE_THROWS_WITH(build({"time.duration=-1"}),
+                      Contains("bad.json: time.duration: must be >= 0, got -1"));
+  REQUIRE_NOTHROW(build({"time.duration=0"}));
+}
+
+TEST_CASE("scene errors: mass must be > 0") {
+  REQUIRE_THROWS_WITH(build({"particles[0].mass=0"}),
+                      Contains("bad.json: particles[0].mass: must be > 0, got 0"));
+  REQUIRE_THROWS_WITH(build({"particles[0].mass=-2"}),
+                      Contains("bad.json: particles[0].mass: must be > 0, got -2"));
+}
+
+TEST_CASE("scene errors: negative radius") {
+  REQUIRE_THROWS_WITH(build({"particles[0].radius=-0.1"}),
+                      Contains("bad.json: particles[0].radius: must be >= 0"));
+}
+
+TEST_CASE("scene errors: missing time and missing particles") {
+  REQUIRE_THROWS_WITH(build({}, R"({"particles": [{"x": [0, 0]}]})"),
+                      Contains("bad.json: time: required"));
+  REQUIRE_THROWS_WITH(build({}, R"({"time": {"dt": 0.1, "duration": 1}})"),
+                      Contains("bad.json: (top level): the scene has no particles"));
+}
+
+TEST_CASE("scene errors: element indices out of range") {
+  REQUIRE_THROWS_WITH(build({"forces[0].elements=[0, 3]"}),
+                      Contains("bad.json: forces[0].elements[1]: particle index must be an "
+                               "integer in [0, 1)"));
+}
+
+TEST_CASE("scene errors: missing scene file") {
+  REQUIRE_THROWS_WITH(load_scene("/nonexistent/scene.json"),
+                      Contains("/nonexistent/scene.json: scene file not found"));
+}
+
+TEST_CASE("scene errors: --set with a bad path or form") {
+  REQUIRE_THROWS_WITH(build({"time.dt"}), Contains("expected PATH=VALUE"));
+  REQUIRE_THROWS_WITH(build({"particles[5].mass=1"}), Contains("no index '5'"));
+  REQUIRE_THROWS_WITH(build({"time.dt.x=1"}), Contains("time.dt is a number"));
+}
+
+TEST_CASE("scene errors: --set overrides values") {
+  const Scene s =
+      parse_scene(kGood, "good.json", ".", {"time.dt=0.0005", "forces[0].params.g=[0,-1]"});
+  CHECK(s.dt == 0.0005);
+  CHECK(s.steps() == 2000);
+  CHECK(s.forces[0].params["g"][1] == -1);
+}

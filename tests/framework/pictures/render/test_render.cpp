@@ -1,0 +1,297 @@
+// Pictures: `pinsim render` (PNG pixels and size, SVG elements), `pinsim replay` (the page in
+// headless Chromium draws the ball where trajectory.csv says) and `pinsim play` (under Xvfb,
+// a recording replays to the same state hash).
+#include <cairo.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <catch2/catch.hpp>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <regex>
+
+#include "pictures/render_data.hpp"
+#include "test_support.hpp"
+
+using namespace pinsim;
+namespace fs = std::filesystem;
+
+namespace {
+
+using test::pinsim_cli;
+using test::shell;
+
+const std::string kScene = PINSIM_TEST_SOURCE_DIR "/framework/pictures/render/box_ball.json";
+// The test scene's unit box, 400 pixels across: pixel = (400 x, 400 (1 - y)).
+const std::string kView = "--view 0,0,1,1 --width 400";
+int px(double x) { return static_cast<int>(400 * x); }
+int py(double y) { return static_cast<int>(400 * (1 - y)); }
+
+/// A PNG read with cairo; pixels as 0..255 RGB.
+class Png {
+ public:
+  explicit Png(const fs::path& file) : s_(cairo_image_surface_create_from_png(file.c_str())) {}
+  ~Png() { cairo_surface_destroy(s_); }
+  Png(const Png&) = delete;
+  Png& operator=(const Png&) = delete;
+  bool ok() const { return cairo_surface_status(s_) == CAIRO_STATUS_SUCCESS; }
+  int width() const { return cairo_image_surface_get_width(s_); }
+  int height() const { return cairo_image_surface_get_height(s_); }
+  std::array<int, 3> rgb(int x, int y) const {
+    const unsigned char* d = cairo_image_surface_get_data(s_);
+    const int stride = cairo_image_surface_get_stride(s_);
+    uint32_t v = 0;
+    std::memcpy(&v, d + static_cast<std::ptrdiff_t>(y) * stride + 4 * x, 4);
+    return {static_cast<int>((v >> 16) & 255), static_cast<int>((v >> 8) & 255),
+            static_cast<int>(v & 255)};
+  }
+  bool is_red(int x, int y) const {  // the first particle's colour, #d91f1f
+    const auto c = rgb(x, y);
+    return c[0] > 180 && c[1] < 80 && c[2] < 80;
+  }
+  bool is_blue(int x, int y) const {  // the second run's colour, #1a59d9
+    const auto c = rgb(x, y);
+    return c[2] > 180 && c[0] < 80;
+  }
+  bool is_dark(int x, int y) const {  // inside an obstacle
+    const auto c = rgb(x, y);
+    return c[0] < 90 && c[1] < 100 && c[2] < 120;
+  }
+  bool is_light(int x, int y) const {  // free space far from obstacles
+    const auto c = rgb(x, y);
+    return c[0] > 200 && c[1] > 180 && c[2] > 150;
+  }
+
+ private:
+  cairo_surface_t* s_;
+};
+
+fs::path make_run(const std::string& tag, const std::string& extra = "") {
+  const fs::path dir = test::temp_dir(tag);
+  const auto r =
+      pinsim_cli("-q run " + kScene + " --out " + dir.string() + " --overwrite " + extra);
+  REQUIRE(r.code == 0);
+  return dir;
+}
+
+std::size_t count(const std::string& text, const std::string& what) {
+  std::size_t n = 0;
+  for (std::size_t k = 0; (k = text.find(what, k)) != std::string::npos; k += what.size()) ++n;
+  return n;
+}
+
+}  // namespace
+
+TEST_CASE("render: a scene as PNG shows the obstacles, the field and the ball") {
+  const fs::path out = test::temp_dir("render-scene") / "scene.png";
+  const auto r = pinsim_cli("-q render " + kScene + " " + kView + " --out " + out.string());
+  REQUIRE(r.code == 0);
+  Png png(out);
+  REQUIRE(png.ok());
+  CHECK(png.width() == 400);
+  CHECK(png.height() == 400);
+  CHECK(png.is_dark(px(0.5), py(0.3)));    // the disc's centre
+  CHECK(png.is_light(px(0.8), py(0.75)));  // free space (far from any wall)
+  CHECK(png.is_red(px(0.2), py(0.8)));     // the ball at t = 0
+  CHECK(!png.is_red(px(0.5), py(0.8)));
+  // The zero contour is drawn sharp and dark: just outside the disc's rim.
+  const auto rim = png.rgb(px(0.5), py(0.3 + 0.15) - 1);
+  CHECK(rim[0] < 80);
+}
+
+TEST_CASE("render: a run as PNG and SVG, with its path and contacts") {
+  const fs::path run = make_run("render-run");
+  const RunData data = load_run(run);
+  REQUIRE(!data.contacts.empty());
+  const auto& last = data.particles.at(0).back();
+
+  const fs::path png_file = run / "run.png";
+  auto r = pinsim_cli("-q render " + run.string() + " " + kView + " --out " + png_file.string());
+  REQUIRE(r.code == 0);
+  Png png(png_file);
+  REQUIRE(png.ok());
+  CHECK(png.width() == 400);
+  CHECK(png.is_red(px(last.x), py(last.y)));  // the ball at the run's end
+  CHECK(!png.is_red(px(0.2), py(0.8)));       // not at its start any more
+  // The path passes x = 0.3 at y = 0.8 - 4.905 (0.1)^2 (before the bounce): red-ish line.
+  const double y_path = 0.8 - 4.905 * 0.01;
+  bool path_seen = false;
+  for (int dy = -2; dy <= 2; ++dy) {
+    const auto c = png.rgb(px(0.3), py(y_path) + dy);
+    path_seen = path_seen || (c[0] > 150 && c[1] < 120);
+  }
+  CHECK(path_seen);
+  // A contact ring (orange) near the first contact point.
+  const auto& c0 = data.contacts.front();
+  bool ring = false;
+  for (int dx = -5; dx <= 5 && !ring; ++dx)
+    for (int dy = -5; dy <= 5 && !ring; ++dy) {
+      const auto c = png.rgb(px(c0.x) + dx, py(c0.y) + dy);
+      ring = c[0] > 200 && c[1] > 90 && c[1] < 190 && c[2] < 80;
+    }
+  CHECK(ring);
+
+  const fs::path svg_file = run / "run.svg";
+  r = pinsim_cli("-q render " + run.string() + " " + kView + " --out " + svg_file.string());
+  REQUIRE(r.code == 0);
+  const std::string svg = test::read_file(svg_file);
+  CHECK(svg.size() > 2000);
+  CHECK(svg.find("<svg") != std::string::npos);
+  CHECK(std::regex_search(svg, std::regex("width=\"400(pt)?\"")));
+  CHECK(std::regex_search(svg, std::regex("height=\"400(pt)?\"")));
+  CHECK(count(svg, "<image") >= 1);  // the shaded field
+  CHECK(count(svg, "<path") >= 5);   // contours, path, contact marks, ball
+}
+
+TEST_CASE("render: a run made with --set overrides is drawn as it ran, from its scene.json") {
+  // The disc moved from x = 0.5 to x = 0.75 on the command line: the run folder keeps the
+  // scene as run, and the picture (no --scene given) shows the disc where the ball met it.
+  const fs::path run = make_run("render-set", "--set obstacles[1].shape.center=[0.75,0.3]");
+  const auto doc = nlohmann::json::parse(test::read_file(run / "scene.json"));
+  CHECK(doc["obstacles"][1]["shape"]["center"] == nlohmann::json::array({0.75, 0.3}));
+  const fs::path png_file = run / "set.png";
+  const auto r = pinsim_cli("-q render " + run.string() + " " + kView +
+                            " --no-trajectories --out " + png_file.string());
+  REQUIRE(r.code == 0);
+  Png png(png_file);
+  REQUIRE(png.ok());
+  CHECK(png.is_dark(px(0.75), py(0.3)));   // the disc's centre as run
+  CHECK(!png.is_dark(px(0.45), py(0.3)));  // not where the scene file has it
+}
+
+TEST_CASE("render: a folder of runs (a crosscheck) overlays both paths") {
+  const fs::path report = test::temp_dir("render-overlay");
+  auto r = pinsim_cli("-q run " + kScene + " --out " + (report / "a").string());
+  REQUIRE(r.code == 0);
+  r = pinsim_cli("-q run " + kScene + " --set time.dt=0.004 --out " + (report / "b").string());
+  REQUIRE(r.code == 0);
+  const fs::path out = report / "overlay.png";
+  r = pinsim_cli("-q render " + report.string() + " " + kView + " --out " + out.string());
+  REQUIRE(r.code == 0);
+  Png png(out);
+  REQUIRE(png.ok());
+  const auto a = load_run(report / "a").particles.at(0).back();
+  const auto b = load_run(report / "b").particles.at(0).back();
+  CHECK(png.is_red(px(a.x), py(a.y)));
+  CHECK(png.is_blue(px(b.x), py(b.y)));
+}
+
+TEST_CASE("render: bad input is one error line") {
+  const auto r = pinsim_cli("render " + kScene + " --out /tmp/x.jpg");
+  CHECK(r.code == 2);
+  CHECK(r.output.find(".png or .svg") != std::string::npos);
+  const auto r2 = pinsim_cli("render /nonexistent-run-dir/");
+  CHECK(r2.code != 0);
+}
+
+namespace {
+
+/// Chromium in headless mode with a fresh profile and no background network; "" if absent.
+std::string chromium_command(const fs::path& profile) {
+  const char* names[] = {"chromium", "chromium-browser", "google-chrome"};
+  for (const char* n : names)
+    if (shell(std::string("command -v ") + n + " >/dev/null").code == 0)
+      return std::string(n) +
+             " --headless --no-sandbox --disable-gpu --disable-quic --no-first-run"
+             " --disable-background-networking --disable-component-update --disable-sync"
+             " --hide-scrollbars --force-device-scale-factor=1 --virtual-time-budget=5000"
+             " --user-data-dir=" +
+             profile.string();
+  return "";
+}
+
+}  // namespace
+
+TEST_CASE(
+    "replay: the page loads in headless Chromium and draws the ball where the trajectory "
+    "says") {
+  const fs::path run = make_run("replay-run");
+  const fs::path page = run / "replay.html";
+  auto r = pinsim_cli("-q replay " + run.string() + " " + kView + " --out " + page.string());
+  REQUIRE(r.code == 0);
+  const std::string html = test::read_file(page);
+  CHECK(html.find("http://") == std::string::npos);  // self-contained: nothing to fetch
+  CHECK(html.find("https://") == std::string::npos);
+  CHECK(html.find("data:image/png;base64,") != std::string::npos);
+
+  const std::string chrome = chromium_command(test::temp_dir("chromium-profile"));
+  if (chrome.empty()) {
+    WARN("SKIPPED: chromium is not installed (scripts/setup.sh installs it)");
+    return;
+  }
+  // The ball at t = 0.5 s, a sample time of trajectory.csv (written every 10 steps).
+  const RunData data = load_run(run);
+  const Eigen::Vector2d at = data.position(0, 0.5);
+  const Eigen::Vector2d start = data.position(0, 0.0);
+  const std::string url = "'file://" + page.string() + "?t=0.5'";
+
+  r = shell(chrome + " --enable-logging=stderr --v=0 --dump-dom " + url);
+  INFO(r.output.substr(0, 4000));
+  CHECK(r.output.find("data-status=\"ok\"") != std::string::npos);
+  CHECK(r.output.find("data-t=\"0.500000\"") != std::string::npos);
+  CHECK(r.output.find("Uncaught") == std::string::npos);
+  CHECK(r.output.find(":CONSOLE(") == std::string::npos);  // no console messages at all
+
+  const fs::path shot = run / "shot.png";
+  r = shell(chrome + " --window-size=400,460 --screenshot=" + shot.string() + " " + url);
+  INFO(r.output.substr(0, 4000));
+  Png png(shot);
+  REQUIRE(png.ok());
+  CHECK(png.width() == 400);
+  CHECK(png.is_red(px(at.x()), py(at.y())));
+  CHECK(!png.is_red(px(start.x()), py(start.y())));  // no ball where it started
+  CHECK(png.is_dark(px(0.5), py(0.3)));              // the background: the disc
+}
+
+TEST_CASE(
+    "play: a window under Xvfb with scripted input; its recording replays to the same "
+    "state hash") {
+  if (shell("command -v xvfb-run >/dev/null").code != 0) {
+    WARN("SKIPPED: xvfb-run is not installed (scripts/setup.sh installs xvfb)");
+    return;
+  }
+  const fs::path dir = test::temp_dir("play");
+  const std::string table = PINSIM_SOURCE_DIR "/configs/pinball.json";
+  const std::string script = PINSIM_TEST_SOURCE_DIR "/framework/pictures/render/play_script.json";
+  const fs::path rec = dir / "recording.json", shot = dir / "shot.png";
+  auto r = shell("xvfb-run -a -s '-screen 0 1024x1280x24' " + std::string(PINSIM_BIN) + " play " +
+                 table + " --script " + script + " --seconds 3 --width 400 --record " +
+                 rec.string() + " --screenshot " + shot.string());
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  const auto recording = nlohmann::json::parse(test::read_file(rec));
+  CHECK(recording["steps"] == 15000);  // 3 s at dt = 0.0002 s
+  CHECK(recording["inputs"].size() == 6);
+  CHECK(recording["inputs"][1]["action"] == "release");
+  CHECK(recording["inputs"][1]["step"] == 3000);  // t = 0.6 s
+
+  // The screenshot is what the window showed: the table, and the ball where the game has it.
+  Png png(shot);
+  REQUIRE(png.ok());
+  CHECK(png.width() == 400);
+  CHECK(png.height() > 600);
+  const double bx = recording["ball"][0], by = recording["ball"][1];
+  // The window's mapping: the scene view (see `render`), 400 pixels across; recompute it.
+  const Scene scene = load_scene(table);
+  const PixelMap map(scene_view(scene), 400);
+  CHECK(png.height() == map.height);
+  CHECK(png.is_red(static_cast<int>(map.px(bx)), static_cast<int>(map.py(by))));
+  CHECK(png.is_dark(static_cast<int>(map.px(0.22)), static_cast<int>(map.py(0.72))));  // bumper
+
+  // Replaying the recording without a window reaches the identical state.
+  r = pinsim_cli("play --replay " + rec.string());
+  INFO(r.output);
+  CHECK(r.code == 0);
+  CHECK(r.output.find(recording["state_hash"].get<std::string>()) != std::string::npos);
+  CHECK(r.output.find("identical") != std::string::npos);
+
+  // A changed recording does not (the check can fail).
+  auto changed = recording;
+  changed["inputs"][1]["step"] = 3500;  // the plunger released 0.1 s later
+  test::write_file(dir / "changed.json", changed.dump());
+  r = pinsim_cli("play --replay " + (dir / "changed.json").string());
+  CHECK(r.code == 1);
+}
