@@ -79,10 +79,12 @@ def main(configs):
             failures.append(f"the schema accepts a scene with an {what}")
 
     swept, sweep_broken = check_sweeps(configs, schema, failures)
+    rubrics, rubric_broken = check_rubrics(configs, failures)
     for f in failures:
         print("FAIL", f)
     print(f"{len(scenes)} scenes validated, {len(broken)} broken scenes checked, "
           f"{swept} bench/stress configs validated, {sweep_broken} broken ones checked, "
+          f"{rubrics} rubrics validated, {rubric_broken} broken ones checked, "
           f"{len(failures)} failures")
     return 1 if failures else 0
 
@@ -152,6 +154,46 @@ def check_sweeps(configs, scene_schema, failures):
         change(doc)
         if validators[kind].is_valid(doc):
             failures.append(f"the {kind} schema accepts a config with {what}")
+    return len(docs), len(broken)
+
+
+def check_rubrics(configs, failures):
+    """configs/grading/rubric.schema.json against the shipped rubrics (and the test suite's
+    own, in tests/framework/grading) and against broken ones."""
+    schema = json.load(open(os.path.join(configs, "grading", "rubric.schema.json")))
+    v = jsonschema.validators.validator_for(schema)(schema)
+    tests_dir = os.path.join(configs, "..", "tests", "framework", "grading")
+    paths = sorted(glob.glob(os.path.join(configs, "grading", "*.json")) +
+                   glob.glob(os.path.join(tests_dir, "rubric_*.json")))
+    docs = {}
+    for path in paths:
+        if path.endswith("schema.json"):
+            continue
+        data = json.loads(strip_comments(open(path).read()))
+        docs[os.path.basename(path)] = data
+        for err in v.iter_errors(data):
+            failures.append(f"{path}: {'/'.join(map(str, err.absolute_path))}: {err.message}")
+    if len(docs) < 3:
+        failures.append(f"only {len(docs)} rubrics found")
+    force = docs["force_assignment.json"]
+    broken = [
+        ("an unknown top-level key", lambda d: d.update({"limit": {}})),
+        ("an unknown test key", lambda d: d["tests"][0].update({"pionts": 3})),
+        ("an unknown check", lambda d: d["tests"][0].update({"check": "energy"})),
+        ("an unknown limit", lambda d: d.update({"limits": {"cpu_second": 3}})),
+        ("a zero wall-clock limit", lambda d: d.update({"limits": {"wall_seconds": 0}})),
+        ("a reference test without a reference",
+         lambda d: next(t for t in d["tests"] if t["check"] == "reference").pop("reference")),
+        ("a simulation test without a scene",
+         lambda d: next(t for t in d["tests"] if t["check"] == "simulation").pop("scene")),
+        ("a bad visibility", lambda d: d["tests"][0].update({"visibility": "secret"})),
+        ("no tests", lambda d: d.update({"tests": []})),
+    ]
+    for what, change in broken:
+        doc = copy.deepcopy(force)
+        change(doc)
+        if v.is_valid(doc):
+            failures.append(f"the rubric schema accepts a rubric with {what}")
     return len(docs), len(broken)
 
 

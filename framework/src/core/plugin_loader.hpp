@@ -25,6 +25,9 @@ struct LoadedPlugin {
   std::shared_ptr<boost::dll::shared_library> library;
   const pinsim_plugin* table = nullptr;
   std::filesystem::path path;
+  /// Keeps alive whatever owns a table that does not come from a library (the grader's
+  /// proxy for a sandboxed submission); null for a loaded library.
+  std::shared_ptr<const void> owner;
   std::string name() const { return table->name; }
   bool is_force() const { return table->kind == PINSIM_KIND_FORCE; }
 };
@@ -46,6 +49,11 @@ class PluginLoader {
 
   /// Finds `name` in the search directories (first match wins) and loads it.
   std::shared_ptr<const LoadedPlugin> load(const std::string& name);
+  /// Makes load(plugin->name()) return `plugin` (a table that is not a file here, such as
+  /// the grader's proxy for a sandboxed submission).
+  void provide(std::shared_ptr<const LoadedPlugin> plugin) {
+    by_name_[plugin->name()] = std::move(plugin);
+  }
   /// Loads an explicit library file; `expected_name` may be empty.
   std::shared_ptr<const LoadedPlugin> load_path(const std::filesystem::path& file,
                                                 const std::string& expected_name);

@@ -572,6 +572,7 @@ CheckReport Checker::run() {
       {"dissipation", [&] { return dissipation_check(); }},
   };
   for (const auto& [name, fn] : checks) {
+    if (!opt_.only.empty() && name != opt_.only) continue;
     try {
       rep.checks.push_back(fn());
     } catch (const std::exception& e) {

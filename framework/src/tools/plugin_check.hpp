@@ -25,6 +25,8 @@ struct CheckOptions {
   double fd_tolerance = 1e-6;
   /// Relative error accepted by the exact identities (Σf = 0, invariance, dissipation).
   double identity_tolerance = 1e-9;
+  /// Run only this check (after "create"); empty: all of them.
+  std::string only;
 };
 
 enum class CheckStatus { Pass, Fail, Skip };

@@ -63,6 +63,33 @@ TEST_CASE("grader: correct shipped plugins get full marks on the force assignmen
       CHECK(t.contains(k));
 }
 
+TEST_CASE("grader: the force rubric tests every option of the shipped plugins") {
+  // A bending plugin that ignores shape, rest_angle and length_scaled (flat rest shape only),
+  // beside the shipped springs: full marks on everything but the option tests.
+  const fs::path plugins = PINSIM_BUILD_PLUGIN_DIR;
+  const fs::path sub = library_folder("flat", {plugins / "libpinsim_plugin_linear_spring.so",
+                                               plugins / "libpinsim_plugin_damped_spring.so",
+                                               subs / "flat_bending/libstudent_bending.so"});
+  const json r = grade(configs / "force_assignment.json", sub, "flat");
+  CAPTURE(r["output"].get<std::string>());
+  auto tests = by_name(r);
+  for (const char* t : {"bending: rest shape 'initial' agrees with the reference",
+                        "bending: a rest angle agrees with the reference",
+                        "bending: length-scaled stiffness agrees with the reference"}) {
+    CAPTURE(t);
+    CHECK(tests[t]["status"] == "failed");
+    CHECK_THAT(tests[t]["output"].get<std::string>(), Contains("worst relative error"));
+  }
+  CHECK(tests["bending: agrees with the reference on random states"]["status"] == "passed");
+  CHECK(tests["linear_spring: zero rest length agrees with the reference"]["status"] == "passed");
+  CHECK(tests["damped_spring: strong damping and a given rest length agree with the reference"]
+             ["status"] == "passed");
+  // The fixture has no Jacobians either: df/dx (2) and df/dv (1) fail, as do the 3 option
+  // tests (2 each): 68 - 9.
+  CHECK(r["max_score"].get<double>() == 68);
+  CHECK(r["score"].get<double>() == 59);
+}
+
 TEST_CASE("grader: each broken force submission gets its expected score and message") {
   const fs::path rubric = src / "rubric_springs.json";
   struct Case {

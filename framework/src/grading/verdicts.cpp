@@ -1,8 +1,6 @@
-// The child side of the autograder: runs one rubric test and prints its verdict as JSON.
-// Everything here may crash, hang or run out of memory because of the submission; the
-// parent (grader.cpp) turns that into a failed test.
+#include "grading/verdicts.hpp"
+
 #include <cmath>
-#include <iostream>
 #include <random>
 #include <sstream>
 
@@ -10,39 +8,12 @@
 #include "core/plugin_instance.hpp"
 #include "core/scene.hpp"
 #include "core/simulation.hpp"
-#include "grading/grader.hpp"
 #include "tools/plugin_check.hpp"
 
 namespace fs = std::filesystem;
 
-namespace pinsim {
+namespace pinsim::grading {
 namespace {
-
-struct Verdict {
-  bool passed = false;
-  std::string output;
-};
-
-/// Finds the submission's library declaring plugin `name`; "" with `why` filled if none.
-fs::path find_library(const fs::path& dir, const std::string& name, std::string& why) {
-  std::error_code ec;
-  std::vector<fs::path> files;
-  for (const auto& e : fs::directory_iterator(dir, ec))
-    if (e.path().extension() == ".so") files.push_back(e.path());
-  std::sort(files.begin(), files.end());
-  for (const auto& f : files) {
-    try {
-      auto p = load_plugin_file(f);
-      if (p->name() == name) return f;
-      why += "\n  " + f.filename().string() + " declares plugin '" + p->name() + "'";
-    } catch (const std::exception& e) {
-      why += "\n  " + f.filename().string() + ": " + e.what();
-    }
-  }
-  why = "no library of the submission declares plugin '" + name +
-        "':" + (why.empty() ? " none found" : why);
-  return {};
-}
 
 std::string num(double v) {
   std::ostringstream o;
@@ -57,6 +28,7 @@ Verdict check_plugin_test(const LoadedPlugin& p, const RubricTest& t) {
   opt.seed = t.spec.value("seed", opt.seed);
   opt.trials = t.spec.value("trials", opt.trials);
   opt.assume_internal = t.spec.value("assume_internal", false);
+  opt.only = t.check;
   const CheckReport rep = check_force_plugin(p, opt);
   const CheckResult* r = rep.find(t.check);
   if (r == nullptr) {
@@ -147,36 +119,32 @@ Verdict reference_test(const std::shared_ptr<const LoadedPlugin>& sub, const Rub
                             (where.empty() ? "" : "; worst at " + where)};
 }
 
-/// Runs a scene to its end and returns the final state (throws on failure).
-struct SceneRun {
-  State final_state;
-  std::vector<pinsim_event> events;
-};
-
-Verdict simulation_test(const fs::path& lib, const RubricTest& t, const fs::path& rubric_dir) {
+Verdict simulation_test(const std::shared_ptr<const LoadedPlugin>& sub, const RubricTest& t,
+                        const fs::path& rubric_dir) {
   const Scene base = load_scene(rubric_dir / t.spec.at("scene").get<std::string>());
   Scene mine = base;
   int replaced = 0;
   for (auto& f : mine.forces)
     if (f.name == t.plugin) {
-      f.library = lib.string();
+      f.library.clear();  // resolved to the submission's plugin by the loader below
       ++replaced;
     }
   if (replaced == 0) return {false, "the scene uses no force '" + t.plugin + "' (rubric error)"};
   PluginLoader l1(plugin_search_dirs(base.plugin_path)), l2(plugin_search_dirs(base.plugin_path));
-  Simulation ref(base, l1), sub(mine, l2);
+  l2.provide(sub);
+  Simulation ref(base, l1), sim(mine, l2);
   const double tol = t.spec.value("tolerance", 1e-6);
   double worst = 0.0;
   uint64_t worst_step = 0;
   for (uint64_t n = 0; n < base.steps(); ++n) {
     ref.step();
     try {
-      sub.step();
+      sim.step();
     } catch (const NumericError& e) {
       return {false, "your simulation failed at step " + std::to_string(e.step) + ", particle " +
                          std::to_string(e.particle) + ": " + e.what()};
     }
-    const double d = (sub.state().x - ref.state().x).colwise().norm().maxCoeff();
+    const double d = (sim.state().x - ref.state().x).colwise().norm().maxCoeff();
     if (!(d <= worst)) {
       worst = std::isfinite(d) ? d : HUGE_VAL;
       worst_step = n + 1;
@@ -211,14 +179,16 @@ std::string second_opinion(const Scene& scene, const RubricTest& t, const State&
   }
 }
 
-Verdict backend_test(const fs::path& lib, const RubricTest& t, const fs::path& rubric_dir) {
+Verdict backend_test(const std::shared_ptr<const LoadedPlugin>& plugin, const RubricTest& t,
+                     const fs::path& rubric_dir) {
   const std::string scene_file = t.spec.at("scene").get<std::string>();
   Scene ref_scene = load_scene(rubric_dir / scene_file);
   ref_scene.backend = PluginRef{t.spec.at("reference").get<std::string>(), "",
                                 ref_scene.backend.params, ref_scene.backend.where};
   Scene mine = ref_scene;
-  mine.backend = PluginRef{t.plugin, lib.string(), nlohmann::json::object(), "your backend"};
+  mine.backend = PluginRef{t.plugin, "", nlohmann::json::object(), "your backend"};
   PluginLoader l1(plugin_search_dirs()), l2(plugin_search_dirs());
+  l2.provide(plugin);
   Simulation ref(ref_scene, l1), sub(mine, l2);
   const double tol = t.spec.value("tolerance", 1e-3);
   const bool has_distance = ref.backend().has_distance();
@@ -266,43 +236,15 @@ Verdict backend_test(const fs::path& lib, const RubricTest& t, const fs::path& r
 
 }  // namespace
 
-int grade_worker(const fs::path& rubric_file, std::size_t index, const fs::path& libraries) {
-  Verdict v;
-  try {
-    const Rubric rubric = load_rubric(rubric_file);
-    if (index >= rubric.tests.size()) throw std::runtime_error("no test " + std::to_string(index));
-    const RubricTest& t = rubric.tests[index];
-    std::string why;
-    const fs::path lib = find_library(libraries, t.plugin, why);
-    if (lib.empty()) {
-      v = {false, why};
-    } else {
-      PluginLoader loader({});
-      auto p = loader.load_path(lib, t.plugin);
-      const bool want_force = rubric.kind == "force";
-      if (p->is_force() != want_force) {
-        v = {false, "plugin '" + t.plugin + "' is a " + (p->is_force() ? "force" : "backend") +
-                        ", this assignment wants a " + rubric.kind};
-      } else if (t.check == "load") {
-        v = {true, "loaded plugin '" + t.plugin + "' " + p->table->version + " from " +
-                       lib.filename().string()};
-      } else if (t.check == "reference") {
-        v = reference_test(p, t);
-      } else if (t.check == "simulation") {
-        v = simulation_test(lib, t, rubric.file.parent_path());
-      } else if (t.check.rfind("backend_", 0) == 0) {
-        v = backend_test(lib, t, rubric.file.parent_path());
-      } else {
-        v = check_plugin_test(*p, t);
-      }
-    }
-  } catch (const std::bad_alloc&) {
-    v = {false, "ran out of memory"};
-  } catch (const std::exception& e) {
-    v = {false, e.what()};
-  }
-  std::cout << nlohmann::json{{"passed", v.passed}, {"output", v.output}}.dump() << std::endl;
-  return 0;
+Verdict run_check(const RubricTest& t, const std::shared_ptr<const LoadedPlugin>& sub,
+                  const fs::path& rubric_dir) {
+  if (t.check == "load")
+    return {true, "loaded plugin '" + t.plugin + "' " + sub->table->version + " from " +
+                      sub->path.filename().string()};
+  if (t.check == "reference") return reference_test(sub, t);
+  if (t.check == "simulation") return simulation_test(sub, t, rubric_dir);
+  if (t.check.rfind("backend_", 0) == 0) return backend_test(sub, t, rubric_dir);
+  return check_plugin_test(*sub, t);
 }
 
-}  // namespace pinsim
+}  // namespace pinsim::grading

@@ -1,0 +1,139 @@
+#include "grading/results.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <sstream>
+#include <stdexcept>
+
+#include "grading/text.hpp"
+
+namespace fs = std::filesystem;
+
+namespace pinsim::grading {
+namespace {
+
+std::string xml_escape(const std::string& raw) {
+  const std::string s = sanitize_text(raw);
+  std::string o;
+  for (char c : s) {
+    switch (c) {
+      case '<':
+        o += "&lt;";
+        break;
+      case '>':
+        o += "&gt;";
+        break;
+      case '&':
+        o += "&amp;";
+        break;
+      case '"':
+        o += "&quot;";
+        break;
+      case '\'':
+        o += "&apos;";
+        break;
+      default:
+        o += c;
+    }
+  }
+  return o;
+}
+
+std::string str(const nlohmann::json& j, const char* key) {
+  return j.contains(key) && j[key].is_string() ? j[key].get<std::string>() : std::string();
+}
+
+double number(const nlohmann::json& j, const char* key) {
+  return j.contains(key) && j[key].is_number() ? j[key].get<double>() : 0.0;
+}
+
+}  // namespace
+
+void write_atomically(const fs::path& file, const std::string& text) {
+  const fs::path tmp = file.string() + ".tmp." + std::to_string(::getpid());
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0)
+    throw std::runtime_error("cannot write " + tmp.string() + ": " + std::strerror(errno));
+  const char* p = text.data();
+  std::size_t left = text.size();
+  bool ok = true;
+  while (ok && left > 0) {
+    const ssize_t w = ::write(fd, p, left);
+    if (w < 0 && errno == EINTR) continue;
+    ok = w > 0;
+    if (ok) {
+      p += w;
+      left -= static_cast<std::size_t>(w);
+    }
+  }
+  const int saved = errno;
+  ok = ok && ::fsync(fd) == 0;
+  ok = ::close(fd) == 0 && ok;
+  if (!ok || ::rename(tmp.c_str(), file.c_str()) != 0) {
+    const std::string why = std::strerror(ok ? errno : saved);
+    ::unlink(tmp.c_str());
+    throw std::runtime_error("cannot write " + file.string() + ": " + why);
+  }
+}
+
+std::string junit_xml(const nlohmann::json& results, const std::string& suite) {
+  std::ostringstream x;
+  int failures = 0;
+  for (const auto& t : results["tests"]) failures += str(t, "status") != "passed";
+  x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuite name=\"" << xml_escape(suite)
+    << "\" tests=\"" << results["tests"].size() << "\" failures=\"" << failures << "\" time=\""
+    << number(results, "execution_time") << "\">\n";
+  for (const auto& t : results["tests"]) {
+    x << "  <testcase name=\"" << xml_escape(str(t, "name")) << "\" time=\""
+      << number(t, "execution_time") << "\"";
+    if (str(t, "status") == "passed") {
+      x << "/>\n";
+    } else {
+      x << ">\n    <failure message=\"" << xml_escape(str(t, "name")) << "\">"
+        << xml_escape(str(t, "output")) << "</failure>\n  </testcase>\n";
+    }
+  }
+  x << "</testsuite>\n";
+  return x.str();
+}
+
+std::string summary_text(const nlohmann::json& results, const std::string& rubric_name) {
+  std::ostringstream s;
+  int passed = 0;
+  for (const auto& t : results["tests"]) passed += str(t, "status") == "passed";
+  s << sanitize_text(rubric_name) << ": " << number(results, "score") << " / "
+    << number(results, "max_score") << " points, " << passed << " of " << results["tests"].size()
+    << " tests passed\n";
+  for (const auto& t : results["tests"]) {
+    s << "  [" << (str(t, "status") == "passed" ? "pass" : "FAIL") << "] " << str(t, "number")
+      << ". " << sanitize_text(str(t, "name")) << " (" << number(t, "score") << "/"
+      << number(t, "max_score") << ")\n";
+    if (str(t, "status") != "passed") {
+      std::istringstream lines(sanitize_text(str(t, "output")));
+      for (std::string l; std::getline(lines, l);) s << "        " << l << "\n";
+    }
+  }
+  return s.str();
+}
+
+void write_results(const fs::path& dir, const nlohmann::json& results, const std::string& name) {
+  // error_handler::replace: a string that is somehow still not UTF-8 cannot stop the dump.
+  write_atomically(dir / "results.json",
+                   results.dump(2, ' ', false, nlohmann::json::error_handler_t::replace) + "\n");
+  write_atomically(dir / "junit.xml", junit_xml(results, name));
+  write_atomically(dir / "summary.txt", summary_text(results, name));
+}
+
+nlohmann::json failed_results(const std::string& reason) {
+  return {{"score", 0.0},
+          {"max_score", 0.0},
+          {"execution_time", 0.0},
+          {"output", sanitize_text(reason)},
+          {"visibility", "visible"},
+          {"tests", nlohmann::json::array()}};
+}
+
+}  // namespace pinsim::grading

@@ -1,0 +1,29 @@
+// The grader's outputs: Gradescope's results.json, JUnit XML and summary.txt. Every string
+// in them is sanitized (valid UTF-8, no control characters), and every file is written
+// atomically (a temporary file, flushed, then renamed), so a reader sees either the old
+// file or the whole new one.
+#pragma once
+
+#include <filesystem>
+#include <nlohmann/json.hpp>
+#include <string>
+
+namespace pinsim::grading {
+
+/// Writes `text` to `file` atomically; throws std::runtime_error naming the file on failure.
+void write_atomically(const std::filesystem::path& file, const std::string& text);
+
+/// JUnit XML for a Gradescope results object.
+std::string junit_xml(const nlohmann::json& results, const std::string& suite);
+
+/// The readable summary: score, then one line per test, failed tests with their output.
+std::string summary_text(const nlohmann::json& results, const std::string& rubric_name);
+
+/// Writes results.json, junit.xml and summary.txt into `dir`, atomically each.
+void write_results(const std::filesystem::path& dir, const nlohmann::json& results,
+                   const std::string& rubric_name);
+
+/// A results object with score 0 and `reason` as its output: for the grader's own failures.
+nlohmann::json failed_results(const std::string& reason);
+
+}  // namespace pinsim::grading

@@ -1,0 +1,393 @@
+#include "grading/sandbox.hpp"
+
+#include <dirent.h>
+#include <fcntl.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/resource.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <stdexcept>
+
+#include "grading/text.hpp"
+
+namespace fs = std::filesystem;
+
+namespace pinsim::grading {
+namespace {
+
+bool g_unsafe = false;
+// Root grades as a uid of its own, unused by any account: 200000 + (pid mod 100000), one per
+// grader process (as IOI's isolate gives each box its own uid). RLIMIT_NPROC counts the
+// processes of a uid, so a fork bomb in one grade cannot starve a grade running beside it.
+constexpr uid_t kSandboxUidBase = 200000;
+
+std::string bwrap_program() {
+  // The test suite points this at a missing program to prove the grader refuses to grade.
+  const char* e = std::getenv("PINSIM_BWRAP");
+  return e && *e ? e : "/usr/bin/bwrap";
+}
+
+std::string secs(double s) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%g", s);
+  return buf;
+}
+
+double now() {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
+}
+
+/// Processes the grader's own uid has now (RLIMIT_NPROC counts them all when not root).
+int own_process_count() {
+  int n = 0;
+  const uid_t me = ::getuid();
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator("/proc", ec)) {
+    struct stat st {};
+    if (std::isdigit(static_cast<unsigned char>(e.path().filename().string()[0])) &&
+        ::stat(e.path().c_str(), &st) == 0 && st.st_uid == me)
+      ++n;
+  }
+  return n;
+}
+
+void set_limit(int resource, rlim_t soft, rlim_t hard) {
+  rlimit rl{soft, hard};
+  ::setrlimit(resource, &rl);
+}
+
+/// The bubblewrap command line for one step.
+std::vector<std::string> bwrap_args(const SandboxSpec& spec, const std::vector<std::string>& argv) {
+  const auto [uid, gid] = sandbox_ids();
+  const bool root = ::geteuid() == 0;
+  std::vector<std::string> a = {bwrap_program(), "--die-with-parent",   "--new-session",
+                                "--unshare-pid", "--unshare-net",       "--unshare-ipc",
+                                "--unshare-uts", "--unshare-cgroup-try"};
+  if (!root) {
+    // Unprivileged: a user namespace maps the grader's uid; no nested namespaces.
+    a.insert(a.end(), {"--unshare-user", "--disable-userns", "--uid", std::to_string(uid), "--gid",
+                       std::to_string(gid)});
+  }
+  // The system's programs and libraries, read-only; nothing of /etc but what the compiler
+  // and the dynamic loader need.
+  a.insert(a.end(), {"--ro-bind", "/usr", "/usr"});
+  for (const char* d : {"bin", "lib", "lib64", "sbin"}) {
+    const fs::path p = fs::path("/") / d;
+    std::error_code ec;
+    if (fs::is_symlink(p, ec))
+      a.insert(a.end(), {"--symlink", fs::read_symlink(p, ec).string(), p.string()});
+    else if (fs::is_directory(p, ec))
+      a.insert(a.end(), {"--ro-bind", p.string(), p.string()});
+  }
+  a.insert(a.end(), {"--ro-bind-try", "/etc/alternatives", "/etc/alternatives", "--ro-bind-try",
+                     "/etc/ld.so.cache", "/etc/ld.so.cache"});
+  // Locally installed software (an installed pinsim and its reference plugins) is hidden.
+  std::error_code ec;
+  if (fs::is_directory("/usr/local", ec)) a.insert(a.end(), {"--tmpfs", "/usr/local"});
+  a.insert(a.end(), {"--proc", "/proc", "--dev", "/dev", "--perms", "1777", "--size",
+                     std::to_string(static_cast<long long>(spec.limits.tmp_mb * 1048576.0)),
+                     "--tmpfs", "/tmp"});
+  // Folders that hold mount points, readable by the sandbox's uid (bwrap would make them 0700).
+  std::vector<std::string> parents;
+  for (const auto& m : spec.mounts)
+    for (fs::path p = fs::path(m.inside).parent_path(); !m.inside.empty() && p != p.root_path();
+         p = p.parent_path())
+      if (p.string().rfind("/usr", 0) != 0 && p.string().rfind("/tmp", 0) != 0)
+        parents.push_back(p.string());
+  std::sort(parents.begin(), parents.end());
+  parents.erase(std::unique(parents.begin(), parents.end()), parents.end());
+  for (const auto& p : parents) a.insert(a.end(), {"--perms", "0755", "--dir", p});
+  for (const auto& m : spec.mounts) {
+    if (m.inside.empty()) {  // a mask: an empty tmpfs over a host path
+      std::error_code e2;
+      if (fs::is_directory(m.host, e2)) a.insert(a.end(), {"--tmpfs", m.host});
+      continue;
+    }
+    a.insert(a.end(), {m.writable ? "--bind" : "--ro-bind", m.host, m.inside});
+  }
+  a.insert(a.end(), {"--chdir", spec.cwd, "--clearenv", "--setenv", "PATH", "/usr/bin:/bin",
+                     "--setenv", "HOME", "/tmp", "--setenv", "TMPDIR", "/tmp", "--setenv", "LANG",
+                     "C.UTF-8", "--info-fd", "4", "--"});
+  if (root) {
+    // Root: bubblewrap sets up the namespaces privileged; the command itself runs as the sandbox
+    // uid, with no capabilities (a uid change from 0 clears them).
+    a.insert(a.end(), {"/usr/bin/setpriv", "--reuid=" + std::to_string(uid),
+                       "--regid=" + std::to_string(gid), "--clear-groups", "--"});
+  }
+  a.insert(a.end(), argv.begin(), argv.end());
+  return a;
+}
+
+/// Unsafe mode: the inside paths of argv mapped back to the host's.
+std::vector<std::string> host_args(const SandboxSpec& spec, std::vector<std::string> argv) {
+  for (auto& s : argv)
+    for (const auto& m : spec.mounts)
+      if (!m.inside.empty() && s.rfind(m.inside, 0) == 0) {
+        s = m.host + s.substr(m.inside.size());
+        break;
+      }
+  return argv;
+}
+
+[[noreturn]] void child(const std::vector<std::string>& args, const SandboxSpec& spec, int out_w,
+                        int chan_w, int info_w, const std::string& cwd) {
+  ::setpgid(0, 0);
+  sigset_t none;
+  sigemptyset(&none);
+  ::sigprocmask(SIG_SETMASK, &none, nullptr);
+  for (int s : {SIGPIPE, SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGCHLD}) ::signal(s, SIG_DFL);
+  const int devnull = ::open("/dev/null", O_RDONLY);
+  ::dup2(devnull, STDIN_FILENO);
+  ::dup2(out_w, STDOUT_FILENO);
+  ::dup2(out_w, STDERR_FILENO);
+  // Descriptors 3 (channel) and 4 (bwrap's info) are placed with a detour through high
+  // numbers, so that no dup2 overwrites a source still needed.
+  const int chan_hi = chan_w >= 0 ? ::fcntl(chan_w, F_DUPFD, 100) : -1;
+  const int info_hi = info_w >= 0 ? ::fcntl(info_w, F_DUPFD, 100) : -1;
+  if (chan_hi >= 0) ::dup2(chan_hi, 3);
+  if (info_hi >= 0) ::dup2(info_hi, 4);
+  ::close_range(5, ~0u, 0);
+  const SandboxLimits& l = spec.limits;
+  const auto cpu = static_cast<rlim_t>(std::ceil(l.cpu_seconds));
+  set_limit(RLIMIT_CPU, cpu, cpu + 1);
+  const auto mem = static_cast<rlim_t>(l.memory_mb * 1048576.0);
+  set_limit(RLIMIT_AS, mem, mem);
+  const auto fsize = static_cast<rlim_t>(l.file_mb * 1048576.0);
+  set_limit(RLIMIT_FSIZE, fsize, fsize);
+  set_limit(RLIMIT_NOFILE, static_cast<rlim_t>(l.open_files), static_cast<rlim_t>(l.open_files));
+  set_limit(RLIMIT_CORE, 0, 0);
+  // Root's own processes are not counted against it, the sandbox uid's are; an unprivileged
+  // grader's uid already owns some, which count too.
+  const int nproc = l.processes + (::geteuid() == 0 ? 0 : own_process_count());
+  set_limit(RLIMIT_NPROC, static_cast<rlim_t>(nproc), static_cast<rlim_t>(nproc));
+  if (!cwd.empty() && ::chdir(cwd.c_str()) != 0) ::_exit(126);
+  std::vector<char*> c;
+  for (const auto& s : args) c.push_back(const_cast<char*>(s.c_str()));
+  c.push_back(nullptr);
+  ::execv(c[0], c.data());
+  const std::string msg = "cannot start " + args[0] + ": " + std::strerror(errno) + "\n";
+  [[maybe_unused]] const auto w = ::write(STDERR_FILENO, msg.data(), msg.size());
+  ::_exit(127);
+}
+
+/// Reads bwrap's info JSON ({"child-pid": N, ...}) for the host pid of the sandbox's init.
+pid_t read_inner_pid(int fd, double timeout) {
+  std::string text;
+  const double end = now() + timeout;
+  while (text.find('}') == std::string::npos) {
+    const double left = end - now();
+    if (left <= 0) break;
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, static_cast<int>(left * 1000) + 1) <= 0) break;
+    char buf[512];
+    const ssize_t n = ::read(fd, buf, sizeof buf);
+    if (n <= 0) break;
+    text.append(buf, static_cast<std::size_t>(n));
+    if (text.size() > 8192) break;
+  }
+  const auto k = text.find("\"child-pid\"");
+  if (k == std::string::npos) return -1;
+  const auto colon = text.find(':', k);
+  if (colon == std::string::npos) return -1;
+  return static_cast<pid_t>(std::atol(text.c_str() + colon + 1));
+}
+
+}  // namespace
+
+std::string StepEnd::failure(const SandboxLimits& limits) const {
+  if (timed_out)
+    return "did not finish within the wall-clock limit of " + secs(limits.wall_seconds) +
+           " s (an infinite loop, a deadlock or a sleep?) and was killed";
+  int sig = signal;
+  // bubblewrap reports a command killed by signal s as exit status 128 + s.
+  if (sig == 0 && exited && exit_code > 128 && exit_code < 128 + 65) sig = exit_code - 128;
+  if (sig == SIGXCPU || sig == SIGKILL)
+    return "exceeded the CPU-time limit of " + secs(limits.cpu_seconds) + " s and was killed";
+  if (sig == SIGSEGV) return "crashed with a segmentation fault (SIGSEGV)";
+  if (sig == SIGBUS) return "crashed with a bus error (SIGBUS)";
+  if (sig == SIGFPE) return "crashed with a floating-point exception (SIGFPE)";
+  if (sig == SIGXFSZ)
+    return "wrote a file larger than the limit of " + secs(limits.file_mb) + " MiB (SIGXFSZ)";
+  if (sig == SIGABRT)
+    return "aborted (SIGABRT): an exception escaped, an assertion failed, or memory ran out "
+           "(limit " +
+           secs(limits.memory_mb) + " MiB)";
+  if (sig != 0) return std::string("was killed by signal ") + ::strsignal(sig);
+  if (exited && exit_code != 0) return "exited with status " + std::to_string(exit_code);
+  if (!exited) return "ended abnormally";
+  return "";
+}
+
+void set_unsafe_no_sandbox(bool unsafe) { g_unsafe = unsafe; }
+bool unsafe_no_sandbox() { return g_unsafe; }
+
+std::pair<uid_t, gid_t> sandbox_ids() {
+  if (::geteuid() == 0) {
+    static const uid_t id = kSandboxUidBase + static_cast<uid_t>(::getpid()) % 100000;
+    return {id, id};
+  }
+  return {::getuid(), ::getgid()};
+}
+
+const std::string& sandbox_unavailable() {
+  static const std::string why = [] {
+    std::error_code ec;
+    const std::string prog = bwrap_program();
+    if (!fs::exists(prog, ec)) return prog + " not found (install Debian's bubblewrap package)";
+    SandboxSpec spec;
+    spec.limits.wall_seconds = 20;
+    const bool was = g_unsafe;
+    g_unsafe = false;
+    StepOutput r;
+    try {
+      r = run_sandboxed({"/usr/bin/true"}, spec, 2000, 0);
+    } catch (const std::exception& e) {
+      g_unsafe = was;
+      return std::string(e.what());
+    }
+    g_unsafe = was;
+    if (r.end.exited && r.end.exit_code == 0) return std::string();
+    return "bubblewrap could not make a sandbox (" + r.end.failure(spec.limits) +
+           "): " + r.printed + " (are user namespaces disabled?)";
+  }();
+  return why;
+}
+
+Sandboxed start_sandboxed(const std::vector<std::string>& argv, const SandboxSpec& spec) {
+  int out[2], info[2] = {-1, -1}, chan[2] = {-1, -1};
+  if (::pipe2(out, O_CLOEXEC) != 0)
+    throw std::runtime_error("pipe: " + std::string(std::strerror(errno)));
+  if (!g_unsafe && ::pipe2(info, O_CLOEXEC) != 0)
+    throw std::runtime_error("pipe: " + std::string(std::strerror(errno)));
+  if (spec.channel && ::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, chan) != 0)
+    throw std::runtime_error("socketpair: " + std::string(std::strerror(errno)));
+  const std::vector<std::string> args = g_unsafe ? host_args(spec, argv) : bwrap_args(spec, argv);
+  std::string cwd;
+  if (g_unsafe) cwd = host_args(spec, {spec.cwd})[0];
+  std::fflush(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) throw std::runtime_error("fork: " + std::string(std::strerror(errno)));
+  if (pid == 0) child(args, spec, out[1], chan[1], info[1], g_unsafe ? cwd : std::string());
+  ::setpgid(pid, pid);  // also here, so that a kill right after fork reaches the group
+  ::close(out[1]);
+  if (info[1] >= 0) ::close(info[1]);
+  if (chan[1] >= 0) ::close(chan[1]);
+  Sandboxed s;
+  s.pid = pid;
+  s.output_fd = out[0];
+  s.channel_fd = chan[0];
+  ::fcntl(s.output_fd, F_SETFL, O_NONBLOCK);
+  if (info[0] >= 0) {
+    s.inner = read_inner_pid(info[0], 10.0);
+    ::close(info[0]);
+  }
+  return s;
+}
+
+StepEnd kill_and_reap(Sandboxed& s, bool timed_out) {
+  StepEnd end;
+  end.timed_out = timed_out;
+  if (s.pid > 0) {
+    int status = 0;
+    pid_t w = ::waitpid(s.pid, &status, WNOHANG);
+    if (w == 0) {
+      // The sandbox's init first: its death takes every process of the PID namespace with it,
+      // and bubblewrap then exits by itself.
+      if (s.inner > 0) ::kill(s.inner, SIGKILL);
+      for (int i = 0; i < 200 && w == 0; ++i) {
+        ::usleep(5000);
+        w = ::waitpid(s.pid, &status, WNOHANG);
+      }
+      if (w == 0) {
+        ::kill(-s.pid, SIGKILL);
+        ::kill(s.pid, SIGKILL);
+        w = ::waitpid(s.pid, &status, 0);
+      }
+    }
+    ::kill(-s.pid, SIGKILL);  // anything left in the process group (unsafe mode)
+    if (w == s.pid) {
+      if (WIFEXITED(status)) {
+        end.exited = true;
+        end.exit_code = WEXITSTATUS(status);
+      } else if (WIFSIGNALED(status)) {
+        end.signal = WTERMSIG(status);
+      }
+    }
+    s.pid = -1;
+  }
+  if (s.output_fd >= 0) ::close(s.output_fd);
+  if (s.channel_fd >= 0) ::close(s.channel_fd);
+  s.output_fd = s.channel_fd = -1;
+  return end;
+}
+
+StepOutput run_sandboxed(const std::vector<std::string>& argv, const SandboxSpec& spec,
+                         std::size_t keep_head, std::size_t keep_tail) {
+  StepOutput r;
+  const double start = now();
+  Sandboxed s = start_sandboxed(argv, spec);
+  BoundedText printed(keep_head, keep_tail);
+  bool timed_out = false, eof = false;
+  int status = 0;
+  pid_t w = 0;
+  for (;;) {
+    if (!eof) {
+      pollfd p{s.output_fd, POLLIN, 0};
+      ::poll(&p, 1, 50);
+      char buf[65536];
+      for (;;) {
+        const ssize_t n = ::read(s.output_fd, buf, sizeof buf);
+        if (n > 0) {
+          printed.append(buf, static_cast<std::size_t>(n));
+          continue;
+        }
+        if (n == 0) eof = true;
+        break;
+      }
+    } else {
+      ::usleep(10000);
+    }
+    w = ::waitpid(s.pid, &status, WNOHANG);
+    if (w == s.pid && eof) break;
+    if (w == s.pid) {  // exited; read what is left without waiting for stray writers
+      char buf[65536];
+      ssize_t n;
+      while ((n = ::read(s.output_fd, buf, sizeof buf)) > 0)
+        printed.append(buf, static_cast<std::size_t>(n));
+      break;
+    }
+    if (now() - start > spec.limits.wall_seconds) {
+      timed_out = true;
+      break;
+    }
+  }
+  if (w == s.pid) {
+    if (WIFEXITED(status)) {
+      r.end.exited = true;
+      r.end.exit_code = WEXITSTATUS(status);
+    } else if (WIFSIGNALED(status)) {
+      r.end.signal = WTERMSIG(status);
+    }
+    s.pid = -1;
+    ::close(s.output_fd);
+    s.output_fd = -1;
+    if (s.channel_fd >= 0) ::close(s.channel_fd);
+  } else {
+    r.end = kill_and_reap(s, timed_out);
+  }
+  r.printed = printed.text();
+  r.seconds = now() - start;
+  return r;
+}
+
+}  // namespace pinsim::grading

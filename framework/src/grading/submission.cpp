@@ -1,0 +1,195 @@
+#include "grading/submission.hpp"
+
+#include <fcntl.h>
+#include <stdlib.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cstring>
+#include <stdexcept>
+
+namespace fs = std::filesystem;
+
+namespace pinsim::grading {
+namespace {
+
+constexpr std::uintmax_t kMaxLibrary = 256ull << 20;      // bytes per library
+constexpr std::uintmax_t kMaxSourceBytes = 256ull << 20;  // a source submission in all
+constexpr std::size_t kMaxSourceFiles = 20000;
+constexpr std::size_t kLogHead = 24 << 10, kLogTail = 24 << 10;  // of a build's output
+
+/// Copies a regular file without following symlinks; false if it is not one, or too large.
+bool copy_regular(const fs::path& from, const fs::path& to, std::uintmax_t max) {
+  const int in = ::open(from.c_str(), O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
+  if (in < 0) return false;
+  struct stat st {};
+  if (::fstat(in, &st) != 0 || !S_ISREG(st.st_mode) ||
+      static_cast<std::uintmax_t>(st.st_size) > max) {
+    ::close(in);
+    return false;
+  }
+  const int out = ::open(to.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  bool ok = out >= 0;
+  char buf[1 << 16];
+  ssize_t n;
+  while (ok && (n = ::read(in, buf, sizeof buf)) > 0)
+    ok = ::write(out, buf, static_cast<std::size_t>(n)) == n;
+  ::close(in);
+  if (out >= 0) ok = ::close(out) == 0 && ok;
+  return ok;
+}
+
+/// Copies a source tree: folders, regular files and symlinks (as links, which resolve inside
+/// the sandbox's view), bounded in size and count. Returns "" or what was wrong.
+std::string copy_tree(const fs::path& from, const fs::path& to) {
+  std::error_code ec;
+  std::uintmax_t bytes = 0;
+  std::size_t files = 0;
+  fs::create_directories(to, ec);
+  for (auto it = fs::recursive_directory_iterator(
+           from, fs::directory_options::skip_permission_denied, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    const fs::path rel = fs::relative(it->path(), from, ec);
+    const fs::path dst = to / rel;
+    const auto st = it->symlink_status(ec);
+    if (++files > kMaxSourceFiles)
+      return "the submission has more than " + std::to_string(kMaxSourceFiles) + " files";
+    if (fs::is_symlink(st)) {
+      fs::create_symlink(fs::read_symlink(it->path(), ec), dst, ec);
+    } else if (fs::is_directory(st)) {
+      fs::create_directories(dst, ec);
+    } else if (fs::is_regular_file(st)) {
+      bytes += fs::file_size(it->path(), ec);
+      if (bytes > kMaxSourceBytes) return "the submission is larger than 256 MiB";
+      copy_regular(it->path(), dst, kMaxSourceBytes);
+    }
+  }
+  return ec ? "cannot read the submission: " + ec.message() : "";
+}
+
+/// Every built library under `dir` (not following links) copied into `lib`.
+int collect_libraries(const fs::path& dir, const fs::path& lib) {
+  int n = 0;
+  std::error_code ec;
+  for (auto it =
+           fs::recursive_directory_iterator(dir, fs::directory_options::skip_permission_denied, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    if (it->path().extension() != ".so" || !fs::is_regular_file(it->symlink_status(ec))) continue;
+    n += copy_regular(it->path(), lib / it->path().filename(), kMaxLibrary);
+  }
+  return n;
+}
+
+/// Read-only mounts of the SDK (headers and CMake package) at their own paths.
+std::vector<Mount> sdk_mounts(const fs::path& prefix) {
+  std::vector<Mount> m;
+  std::error_code ec;
+  for (const fs::path& p : {prefix / "lib/cmake/pinsim", prefix / "include/pinsim",
+                            fs::path(PINSIM_SOURCE_DIR) / "framework/include"})
+    if (fs::is_directory(p, ec)) m.push_back({p.string(), p.string(), false});
+  return m;
+}
+
+void own_for_sandbox(const fs::path& p) {
+  const auto [uid, gid] = sandbox_ids();
+  if (::geteuid() == 0 && ::chown(p.c_str(), uid, gid) != 0)
+    throw std::runtime_error("chown " + p.string() + ": " + std::strerror(errno));
+}
+
+void chown_tree(const fs::path& p) {
+  own_for_sandbox(p);
+  std::error_code ec;
+  for (auto it = fs::recursive_directory_iterator(p, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
+    const auto [uid, gid] = sandbox_ids();
+    if (::geteuid() == 0) ::lchown(it->path().c_str(), uid, gid);
+  }
+}
+
+}  // namespace
+
+PreparedSubmission::~PreparedSubmission() {
+  if (staging.empty()) return;
+  std::error_code ec;
+  // A submission may have left folders without permissions in its build folder.
+  for (auto it = fs::recursive_directory_iterator(
+           staging, fs::directory_options::skip_permission_denied, ec);
+       !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
+    if (fs::is_directory(it->symlink_status(ec))) ::chmod(it->path().c_str(), 0700);
+  fs::remove_all(staging, ec);
+}
+
+void prepare_submission(const fs::path& submission, const fs::path& sdk_prefix,
+                        const Rubric& rubric, PreparedSubmission& out) {
+  const auto start = std::chrono::steady_clock::now();
+  const char* tmp = std::getenv("TMPDIR");
+  std::string templ = std::string(tmp && *tmp ? tmp : "/tmp") + "/pinsim-grade-XXXXXX";
+  if (::mkdtemp(templ.data()) == nullptr)
+    throw std::runtime_error("cannot make a staging folder in " + templ + ": " +
+                             std::strerror(errno));
+  out.staging = templ;
+  ::chmod(out.staging.c_str(), 0711);
+  out.libraries = out.staging / "lib";
+  fs::create_directories(out.libraries);
+  ::chmod(out.libraries.c_str(), 0755);
+
+  std::error_code ec;
+  const fs::path& sub = submission;
+  if (!fs::exists(sub, ec)) {
+    out.problem = "the submission " + sub.filename().string() + " does not exist";
+    return;
+  }
+  if (fs::is_regular_file(sub, ec)) {
+    if (!copy_regular(sub, out.libraries / sub.filename(), kMaxLibrary))
+      out.problem = "cannot read the submitted library " + sub.filename().string();
+  } else if (fs::exists(sub / "CMakeLists.txt", ec)) {
+    const fs::path work = out.staging / "work";
+    fs::create_directories(work / "build");
+    const std::string copied = copy_tree(sub, work / "src");
+    if (!copied.empty()) {
+      out.problem = copied;
+      return;
+    }
+    chown_tree(work);
+    SandboxSpec spec;
+    spec.limits = rubric.build_limits;
+    spec.mounts = sdk_mounts(sdk_prefix);
+    spec.mounts.push_back({work.string(), "/submission", true});
+    spec.cwd = "/submission/build";
+    const auto conf =
+        run_sandboxed({"/usr/bin/cmake", "-S", "/submission/src", "-B", "/submission/build",
+                       "-DCMAKE_BUILD_TYPE=Release", "-DCMAKE_PREFIX_PATH=" + sdk_prefix.string()},
+                      spec, kLogHead, kLogTail);
+    const std::string conf_fail = conf.end.failure(spec.limits);
+    if (!conf_fail.empty()) {
+      out.problem = "the submission does not configure with CMake: the configure step " +
+                    conf_fail + " (limits: docs/grading.md)\n" + conf.printed;
+      out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      return;
+    }
+    // -k: keep going, so every plugin that compiles is built and graded.
+    const auto build = run_sandboxed({"/usr/bin/cmake", "--build", "/submission/build", "--", "-k"},
+                                     spec, kLogHead, kLogTail);
+    const std::string build_fail = build.end.failure(spec.limits);
+    collect_libraries(work / "build", out.libraries);
+    if (!build_fail.empty())
+      out.build_log =
+          "the submission does not compile: the build " + build_fail + "\n" + build.printed;
+  } else if (fs::is_directory(sub, ec)) {
+    for (const auto& e : fs::directory_iterator(sub, ec))
+      if (e.path().extension() == ".so")
+        copy_regular(e.path(), out.libraries / e.path().filename(), kMaxLibrary);
+  }
+  bool any = false;
+  for (const auto& e : fs::directory_iterator(out.libraries, ec))
+    any = any || e.path().extension() == ".so";
+  if (!any && out.problem.empty())
+    out.problem =
+        !out.build_log.empty()
+            ? out.build_log
+            : "the submission holds no plugin library (.so) and no CMakeLists.txt to build one";
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+}  // namespace pinsim::grading

@@ -1,0 +1,26 @@
+// The verdicts of the rubric's checks, computed in the grader (trusted) on a plugin table
+// that may forward to the sandboxed submission (remote_plugin.hpp): check-plugin's checks,
+// agreement with a reference plugin on random states, whole simulations against the
+// reference, and the collision backend checks.
+#pragma once
+
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "core/plugin_loader.hpp"
+#include "grading/rubric.hpp"
+
+namespace pinsim::grading {
+
+struct Verdict {
+  bool passed = false;
+  std::string output;
+};
+
+/// Runs test `t` on the submission's plugin `sub`; the rubric's folder resolves scenes.
+/// Throws only for the grader's own errors; the submission's misbehaviour is a verdict.
+Verdict run_check(const RubricTest& t, const std::shared_ptr<const LoadedPlugin>& sub,
+                  const std::filesystem::path& rubric_dir);
+
+}  // namespace pinsim::grading
