@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "core/bodies.hpp"
 #include "core/param_validation.hpp"
 #include "core/plugin_loader.hpp"
 
@@ -49,7 +50,7 @@ class Force {
     a.initial = &iv;
     a.elements = elements_.data();
     a.arity = t->arity;
-    a.n_elements = elements_.size() / t->arity;
+    a.n_elements = element_count(elements_, t->arity);  // arity 0: length-prefixed
     a.context = "test";
     char msg[512] = {0};
     pinsim_error err{msg, sizeof msg};

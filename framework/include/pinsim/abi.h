@@ -24,6 +24,15 @@ extern "C" {
 /** Bumped on every incompatible change of any struct in this file. */
 #define PINSIM_ABI_VERSION 1u
 
+/** Force arity of a plugin whose elements have variable length: each element is a whole
+ *  body or a closed ring (all of a blob's boundary particles in order), not a fixed-size
+ *  stencil. Such elements cross in `pinsim_create_args.elements` one after another, each
+ *  as its length L followed by its L particle indices (length-prefixed); `n_elements`
+ *  counts elements. A host older than this convention treats arity 0 as 1, and the SDK's
+ *  create() then refuses with a message saying so; no struct changed, so the ABI version
+ *  did not either. */
+#define PINSIM_ARITY_VARIABLE 0u
+
 /** Name of the one exported symbol of every plugin library. */
 #define PINSIM_ENTRY_SYMBOL "pinsim_plugin_entry"
 
@@ -125,7 +134,9 @@ typedef struct pinsim_create_args {
   const char* params_json; /**< validated parameters, defaults filled, a JSON object */
   const char* scene_json;  /**< backends: {"obstacles":[...],"inputs":[...],...}; forces: NULL */
   const pinsim_state_view* initial; /**< the initial state (rest values default to it) */
-  const uint32_t* elements;         /**< n_elements * arity particle indices */
+  /** n_elements * arity particle indices; for PINSIM_ARITY_VARIABLE, per element its
+   *  length L then L indices */
+  const uint32_t* elements;
   uint64_t n_elements;
   uint32_t arity;      /**< equals the plugin's declared arity */
   const char* context; /**< where this instance comes from, for messages */
@@ -156,10 +167,11 @@ typedef struct pinsim_plugin {
   uint32_t abi_version; /**< PINSIM_ABI_VERSION the plugin was built with */
   uint32_t struct_size; /**< sizeof(pinsim_plugin) the plugin was built with */
   uint32_t kind;        /**< pinsim_kind */
-  uint32_t arity;   /**< forces: particles per element (1 = per particle, 2 = pair, 3 = triple) */
-  const char* name; /**< e.g. "damped_spring" */
-  const char* version; /**< e.g. "1.0.0" */
-  const char* doc;     /**< one paragraph */
+  uint32_t arity;       /**< forces: particles per element (1 = per particle, 2 = pair, 3 = triple;
+                             PINSIM_ARITY_VARIABLE = whole bodies / rings of any length) */
+  const char* name;     /**< e.g. "damped_spring" */
+  const char* version;  /**< e.g. "1.0.0" */
+  const char* doc;      /**< one paragraph */
   const pinsim_param* params;
   uint32_t n_params;
   uint32_t capabilities;                                              /**< PINSIM_CAP_* */

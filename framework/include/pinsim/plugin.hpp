@@ -112,12 +112,42 @@ class EventSink {
   const pinsim_event_sink* sink_;
 };
 
-/// Element lists: element e has particles (e, 0) ... (e, arity-1).
+/// Element lists: element e has particles (e, 0) ... (e, size(e) - 1). For a fixed arity
+/// every element has `arity` particles; for PINSIM_ARITY_VARIABLE (arity 0) each element is
+/// a whole body or closed ring of its own length, e.g. a ring blob's `boundary` set: its
+/// particles in ring order, counter-clockwise, the last one joined to the first.
 struct Elements {
-  const uint32_t* data = nullptr;
-  std::size_t count = 0;
-  uint32_t arity = 0;
-  uint32_t operator()(std::size_t e, uint32_t k) const { return data[e * arity + k]; }
+  const uint32_t* data = nullptr;  ///< as in pinsim_create_args (length-prefixed if arity 0)
+  std::size_t count = 0;           ///< number of elements
+  uint32_t arity = 0;              ///< particles per element, 0 = variable
+  std::vector<std::size_t> start;  ///< arity 0: offset in data of element e's first index
+
+  /// Wraps the host's arrays; for arity 0 indexes where each element starts.
+  static Elements from_abi(const uint32_t* data, std::size_t count, uint32_t arity) {
+    Elements el{data, count, arity, {}};
+    if (arity == PINSIM_ARITY_VARIABLE) {
+      el.start.reserve(count);
+      std::size_t at = 0;
+      for (std::size_t e = 0; e < count; ++e) {
+        el.start.push_back(at + 1);
+        at += 1 + data[at];
+      }
+    }
+    return el;
+  }
+  /// Number of particles of element e.
+  std::size_t size(std::size_t e) const {
+    return arity != 0 ? arity : static_cast<std::size_t>(data[start[e] - 1]);
+  }
+  /// Particle k of element e.
+  uint32_t operator()(std::size_t e, std::size_t k) const {
+    return arity != 0 ? data[e * arity + k] : data[start[e] + k];
+  }
+  /// Element e's particle indices, in order.
+  std::vector<uint32_t> element(std::size_t e) const {
+    const uint32_t* p = arity != 0 ? data + e * arity : data + start[e];
+    return std::vector<uint32_t>(p, p + size(e));
+  }
 };
 
 /// Validated parameter values (defaults already filled in by the host).
@@ -224,7 +254,9 @@ struct PluginInfo {
   std::string name;
   std::string version = "1.0.0";
   std::string doc;
-  uint32_t arity = 1;         ///< forces: particles per element
+  /// forces: particles per element (1, 2, 3, ...), or PINSIM_ARITY_VARIABLE for elements
+  /// that are whole bodies or closed rings of any length (`Elements::size(e)`)
+  uint32_t arity = 1;
   uint32_t capabilities = 0;  ///< extra flags: PINSIM_CAP_INTERNAL, _DISSIPATIVE, _PARTICLE_CONTACT
   std::vector<ParamDecl> params;
 };
@@ -289,9 +321,18 @@ void* create(const pinsim_create_args* a, pinsim_error* err) noexcept {
   guarded(err, [&] {
     nlohmann::json params = nlohmann::json::parse(a->params_json ? a->params_json : "{}");
     nlohmann::json scene = a->scene_json ? nlohmann::json::parse(a->scene_json) : nlohmann::json();
-    CreateContext ctx{Params(std::move(params)), std::move(scene), StateView(*a->initial),
-                      Elements{a->elements, static_cast<std::size_t>(a->n_elements), a->arity},
-                      a->context ? a->context : ""};
+    if constexpr (ForcePlugin<T>) {
+      // A host older than variable-length elements passes them as arity 1.
+      if (T::info().arity == PINSIM_ARITY_VARIABLE && a->arity != PINSIM_ARITY_VARIABLE)
+        throw Error(std::string(a->context ? a->context : "") +
+                    ": this plugin takes whole bodies (variable-length elements), but the "
+                    "pinsim loading it passed elements of " +
+                    std::to_string(a->arity) + " particle(s): use a newer pinsim");
+    }
+    CreateContext ctx{
+        Params(std::move(params)), std::move(scene), StateView(*a->initial),
+        Elements::from_abi(a->elements, static_cast<std::size_t>(a->n_elements), a->arity),
+        a->context ? a->context : ""};
     out = new T(ctx);
   });
   return out;

@@ -79,6 +79,20 @@ ElementSet particle_set(uint32_t first, uint32_t count) {
   return s;
 }
 
+/// One variable-length element (arity 0) holding `particles` in order.
+ElementSet whole_set(const std::vector<uint32_t>& particles) {
+  ElementSet s{0, {}};
+  s.add_whole(particles);
+  return s;
+}
+
+/// All of a body's particles in storage order, as one element.
+std::vector<uint32_t> all_of(uint32_t first, uint32_t count) {
+  std::vector<uint32_t> p(count);
+  for (uint32_t i = 0; i < count; ++i) p[i] = first + i;
+  return p;
+}
+
 uint64_t read_count_min(const nlohmann::json& spec, const char* key, uint64_t def, uint64_t min,
                         const Loc& at) {
   const uint64_t n = read_count_or(spec, key, def, at);
@@ -88,8 +102,12 @@ uint64_t read_count_min(const nlohmann::json& spec, const char* key, uint64_t de
   return n;
 }
 
-/// ring_blob: count particles on a circle. Sets: particles, edges (ring neighbours),
-/// cross (across the ring, i to i + count/2), shear (i to i + 2), triples (i-1, i, i+1).
+/// ring_blob: count particles on a circle, particle i at angle + 2 pi i / count
+/// (counter-clockwise). With m = count and indices taken mod m, the sets are: particles (i);
+/// edges (i, i+1) for i = 0..m-1, the last one (m-1, 0) closing the ring; triples
+/// (i-1, i, i+1) for i = 0..m-1, the first (m-1, 0, 1); cross (i, i + m/2) for
+/// i < m/2 if m is even, for every i if m is odd (m >= 4); shear (i, i+2) for every i
+/// (m >= 5); boundary and body: one element, all particles in ring order (closed).
 Body ring_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
   check_keys(spec,
              {"type", "name", "center", "ring_radius", "count", "cross", "shear", "mass",
@@ -119,6 +137,8 @@ Body ring_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
   }
   b.sets["edges"] = edges;
   b.sets["triples"] = tri;
+  b.sets["boundary"] = whole_set(all_of(f, m));
+  b.sets["body"] = b.sets["boundary"];
   if (read_bool_or(spec, "cross", true, at) && m >= 4) {
     ElementSet cross{2, {}};
     const uint32_t h = m / 2;
@@ -133,9 +153,14 @@ Body ring_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
   return b;
 }
 
-/// grid_blob: nx by ny particles from origin (lower left), spacing apart. Sets: particles,
-/// edges (rows and columns), shear (both cell diagonals), bend (i to i+2 along rows and
-/// columns), triples (straight triples along rows and columns).
+/// grid_blob: nx by ny particles from origin (lower left), spacing apart, row by row:
+/// particle (i, j) (column i, row j) has index j nx + i. Sets, visiting nodes row by row
+/// (j outer, i inner) and per node in this order: edges (i,j)-(i+1,j) then (i,j)-(i,j+1);
+/// shear (i,j)-(i+1,j+1) then (i+1,j)-(i,j+1); bend (i,j)-(i+2,j) then (i,j)-(i,j+2);
+/// triples (i,j),(i+1,j),(i+2,j) then (i,j),(i,j+1),(i,j+2); particles (index order);
+/// boundary: one element, the outline counter-clockwise from (0,0) along the bottom row,
+/// up the right column, back along the top row and down the left column (closed);
+/// body: one element, every particle in index order.
 Body grid_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
   check_keys(spec,
              {"type", "name", "origin", "nx", "ny", "spacing", "mass", "total_mass", "radius",
@@ -173,7 +198,14 @@ Body grid_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
         add_triple(tri, id(i, j), id(i, j + 1), id(i, j + 2));
       }
     }
+  std::vector<uint32_t> outline;  // counter-clockwise, each corner once
+  for (uint64_t i = 0; i < nx; ++i) outline.push_back(id(i, 0));
+  for (uint64_t j = 1; j < ny; ++j) outline.push_back(id(nx - 1, j));
+  for (uint64_t i = nx - 1; i-- > 0;) outline.push_back(id(i, ny - 1));
+  for (uint64_t j = ny - 1; j-- > 1;) outline.push_back(id(0, j));
   b.sets["particles"] = particle_set(b.first, b.count);
+  b.sets["boundary"] = whole_set(outline);
+  b.sets["body"] = whole_set(all_of(b.first, b.count));
   b.sets["edges"] = edges;
   b.sets["shear"] = shear;
   if (!bend.indices.empty()) b.sets["bend"] = bend;
@@ -182,8 +214,9 @@ Body grid_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
 }
 
 /// strand: a chain of count particles from root along direction, segment_length apart (or
-/// length in total); the root is pinned (inverse mass 0) unless pin_root is false. Sets:
-/// particles, edges (i, i+1), triples (i, i+1, i+2).
+/// length in total); the root is pinned (inverse mass 0) unless pin_root is false. Sets,
+/// root first: particles (i); edges (i, i+1); triples (i, i+1, i+2); body: one element,
+/// all particles from root to tip (an open chain: nothing joins the tip to the root).
 Body strand(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
   check_keys(spec,
              {"type", "name", "root", "direction", "count", "segment_length", "length", "pin_root",
@@ -214,6 +247,7 @@ Body strand(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
   for (uint32_t i = 0; i + 2 < b.count; ++i)
     add_triple(tri, b.first + i, b.first + i + 1, b.first + i + 2);
   b.sets["particles"] = particle_set(b.first, b.count);
+  b.sets["body"] = whole_set(all_of(b.first, b.count));
   b.sets["edges"] = edges;
   if (!tri.indices.empty()) b.sets["triples"] = tri;
   return b;

@@ -11,11 +11,27 @@
 
 namespace pinsim {
 
-/// A list of elements of one arity: indices.size() == arity * count.
+/// Number of elements in `indices`: size / arity, or for arity 0 (length-prefixed
+/// variable-length elements) the number of prefixes walked.
+inline std::size_t element_count(const std::vector<uint32_t>& indices, uint32_t arity) {
+  if (arity != 0) return indices.size() / arity;
+  std::size_t n = 0;
+  for (std::size_t at = 0; at < indices.size(); at += 1 + std::size_t{indices[at]}) ++n;
+  return n;
+}
+
+/// A list of elements. Fixed arity: indices.size() == arity * count(). Arity 0
+/// (PINSIM_ARITY_VARIABLE: whole bodies, closed rings): each element as its length L
+/// followed by its L indices, exactly as pinsim_create_args passes them.
 struct ElementSet {
   uint32_t arity = 0;
   std::vector<uint32_t> indices;
-  std::size_t count() const { return arity == 0 ? 0 : indices.size() / arity; }
+  std::size_t count() const { return element_count(indices, arity); }
+  /// Appends one variable-length element (arity 0).
+  void add_whole(const std::vector<uint32_t>& particles) {
+    indices.push_back(static_cast<uint32_t>(particles.size()));
+    indices.insert(indices.end(), particles.begin(), particles.end());
+  }
 };
 
 /// Particles being collected while a scene is parsed.
@@ -34,6 +50,8 @@ struct ParticleList {
 };
 
 /// A generated body: its particle range and named element sets (particle indices global).
+/// The sets of each body type and their order are documented in docs/writing_a_plugin.md
+/// ("Element sets of every body") and above each builder in bodies.cpp.
 struct Body {
   std::string name;
   std::string type;

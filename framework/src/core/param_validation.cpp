@@ -136,7 +136,9 @@ std::string format_param_table(const pinsim_plugin& plugin) {
   std::ostringstream o;
   o << plugin.name << " " << plugin.version << " ("
     << (plugin.kind == PINSIM_KIND_FORCE ? "force" : "backend") << ")\n  " << plugin.doc << "\n";
-  if (plugin.kind == PINSIM_KIND_FORCE)
+  if (plugin.kind == PINSIM_KIND_FORCE && plugin.arity == PINSIM_ARITY_VARIABLE)
+    o << "  arity: whole bodies (each element a body or closed ring of any length)\n";
+  else if (plugin.kind == PINSIM_KIND_FORCE)
     o << "  arity: " << plugin.arity << " particle(s) per element\n";
   o << "  capabilities:";
   const std::pair<uint32_t, const char*> caps[] = {

@@ -1,5 +1,7 @@
 #include "core/plugin_instance.hpp"
 
+#include "core/bodies.hpp"
+
 namespace pinsim {
 namespace {
 
@@ -20,8 +22,8 @@ void* create_instance(const LoadedPlugin& p, const State& initial, const Instanc
   args.scene_json = a.scene.is_null() ? nullptr : scene_json.c_str();
   args.initial = &view;
   args.elements = a.elements.empty() ? nullptr : a.elements.data();
-  args.arity = p.table->arity == 0 ? 1 : p.table->arity;
-  args.n_elements = a.elements.size() / args.arity;
+  args.arity = p.table->arity;
+  args.n_elements = element_count(a.elements, args.arity);
   args.context = a.context.c_str();
   pinsim_error err = make_err(err_buf);
   void* self = p.table->create(&args, &err);

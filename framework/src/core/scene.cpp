@@ -133,7 +133,17 @@ std::vector<uint32_t> Scene::resolve_elements(const ForceSpec& f, uint32_t arity
   const uint32_t n = static_cast<uint32_t>(particles.size());
   std::vector<uint32_t> out;
   const auto& e = f.elements;
+  // Arity 0: whole bodies / closed rings of any length, each stored as its length and then
+  // its indices (PINSIM_ARITY_VARIABLE).
+  auto shape = [](uint32_t a) {
+    return a == 0 ? std::string("whole bodies (elements of any length)")
+                  : "elements of " + std::to_string(a) + " particles";
+  };
   if (e.is_null()) {
+    if (arity == 0)
+      throw SceneError(where + ": plugin '" + f.name +
+                       "' acts on whole bodies; give \"elements\": {\"body\": ..., \"set\": "
+                       "\"boundary\"} or a list of particle lists");
     if (arity != 1)
       throw SceneError(where + ": plugin '" + f.name + "' acts on elements of " +
                        std::to_string(arity) +
@@ -164,9 +174,9 @@ std::vector<uint32_t> Scene::resolve_elements(const ForceSpec& f, uint32_t arity
                          "' (it has: " + names + ")");
       }
       if (it->second.arity != arity)
-        throw SceneError(where + ".set: set '" + set + "' of body '" + body + "' has elements of " +
-                         std::to_string(it->second.arity) + " particles, but plugin '" + f.name +
-                         "' needs " + std::to_string(arity));
+        throw SceneError(where + ".set: set '" + set + "' of body '" + body + "' has " +
+                         shape(it->second.arity) + ", but plugin '" + f.name + "' needs " +
+                         shape(arity));
       return it->second.indices;
     }
     throw SceneError(where + ".body: no body named '" + body + "'");
@@ -177,6 +187,12 @@ std::vector<uint32_t> Scene::resolve_elements(const ForceSpec& f, uint32_t arity
     std::vector<nlohmann::json> items;
     if (arity == 1 && e[i].is_number()) {
       items.push_back(e[i]);
+    } else if (arity == 0) {
+      if (!e[i].is_array() || e[i].empty())
+        throw SceneError(ei + ": expected a list of particle indices (a whole body), " +
+                         describe(e[i]));
+      items.assign(e[i].begin(), e[i].end());
+      out.push_back(static_cast<uint32_t>(items.size()));
     } else {
       if (!e[i].is_array() || e[i].size() != arity)
         throw SceneError(ei + ": expected " + std::to_string(arity) + " particle indices, " +

@@ -86,7 +86,7 @@ Simulation::Simulation(const Scene& scene, PluginLoader& loader, const RunOption
       throw SceneError(f.where + ".type: plugin '" + f.name + "' is a backend, not a force");
     InstanceArgs a;
     a.params = validate_params(*p->table, f.params, f.where + ".params");
-    a.elements = scene_.resolve_elements(f, p->table->arity == 0 ? 1 : p->table->arity);
+    a.elements = scene_.resolve_elements(f, p->table->arity);
     a.context = f.where;
     forces_.push_back(std::make_unique<ForceInstance>(p, state_, std::move(a)));
   }

@@ -92,3 +92,39 @@ TEST_CASE("bad bodies are errors naming the key") {
              Catch::Contains("bodies[0].mass"));
   CHECK_THAT(msg(R"({"type": "grid_blob", "spacng": 1})"), Catch::Contains("spacng"));
 }
+
+TEST_CASE("whole-body sets: one variable-length element, length first, in documented order") {
+  using V = std::vector<uint32_t>;
+  ParticleList p;
+  p.add({9, 9}, {0, 0}, 1.0, 0.1);  // global indices start at 1
+  const Body ring = build(R"({"type": "ring_blob", "center": [0, 0], "count": 5})", p);
+  // The ring counter-clockwise from angle 0, closed (the last particle joins the first).
+  CHECK(ring.sets.at("boundary").arity == 0);
+  CHECK(ring.sets.at("boundary").indices == V{5, 1, 2, 3, 4, 5});
+  CHECK(ring.sets.at("boundary").count() == 1);
+  CHECK(ring.sets.at("body").indices == V{5, 1, 2, 3, 4, 5});
+  CHECK(p.x[2].y() > 0.0);  // counter-clockwise: the second particle is above the first
+  // The orders the docs state: edges (i, i+1) closing with (m-1, 0); triples (i-1, i, i+1).
+  CHECK(ring.sets.at("edges").indices == V{1, 2, 2, 3, 3, 4, 4, 5, 5, 1});
+  CHECK(ring.sets.at("triples").indices == V{5, 1, 2, 1, 2, 3, 2, 3, 4, 3, 4, 5, 4, 5, 1});
+  CHECK(ring.sets.at("cross").indices == V{1, 3, 2, 4, 3, 5, 4, 1, 5, 2});  // odd m: every i
+  CHECK(ring.sets.at("shear").indices == V{1, 3, 2, 4, 3, 5, 4, 1, 5, 2});
+
+  ParticleList g;
+  const Body grid = build(R"({"type": "grid_blob", "nx": 4, "ny": 3})", g);
+  // Index j nx + i. Outline counter-clockwise from (0,0): bottom row, right column, top row
+  // back, left column down; body: every particle in index order.
+  CHECK(grid.sets.at("boundary").indices == V{10, 0, 1, 2, 3, 7, 11, 10, 9, 8, 4});
+  CHECK(grid.sets.at("body").indices == V{12, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11});
+  // Per cell (row by row): the right edge, then the upper one.
+  CHECK(V(grid.sets.at("edges").indices.begin(), grid.sets.at("edges").indices.begin() + 6) ==
+        V{0, 1, 0, 4, 1, 2});
+  ParticleList g2;
+  const Body two = build(R"({"type": "grid_blob", "nx": 2, "ny": 2})", g2);
+  CHECK(two.sets.at("boundary").indices == V{4, 0, 1, 3, 2});
+
+  ParticleList s;
+  const Body strand = build(R"({"type": "strand", "root": [0, 0], "count": 4})", s);
+  CHECK(strand.sets.at("body").indices == V{4, 0, 1, 2, 3});  // open: root to tip
+  CHECK(strand.sets.count("boundary") == 0);
+}
