@@ -1,12 +1,16 @@
 // `pinsim check-plugin NAME|PATH`: the physics check of a force plugin (plugin_check.hpp).
+#include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "commands.hpp"
 #include "core/plugin_loader.hpp"
+#include "core/scene.hpp"
 #include "core/scene_error.hpp"
+#include "tools/check_layout.hpp"
 #include "tools/plugin_check.hpp"
 
 namespace pinsim::cli {
@@ -21,6 +25,10 @@ struct CheckPluginArgs {
   int trials = CheckOptions{}.trials;
   bool assume_internal = false;
   bool json = false;
+  std::string topology;
+  std::string scene;
+  std::size_t force_index = 0;
+  std::vector<std::string> plugin_path;
 };
 
 nlohmann::json parse_params(const CheckPluginArgs& a) {
@@ -43,11 +51,32 @@ nlohmann::json parse_params(const CheckPluginArgs& a) {
 int run_check_plugin(const CheckPluginArgs& a) {
   try {
     std::shared_ptr<const LoadedPlugin> plugin;
-    PluginLoader loader(plugin_search_dirs());
-    const bool is_path = a.plugin.find('/') != std::string::npos ||
-                         (a.plugin.size() > 3 && a.plugin.substr(a.plugin.size() - 3) == ".so");
-    plugin = is_path ? loader.load_path(a.plugin, "") : loader.load(a.plugin);
+    // Search order: --plugin-path, the scene's plugin_path, then the usual places
+    // ($PINSIM_PLUGIN_PATH, the install, the build tree).
+    std::vector<std::filesystem::path> dirs(a.plugin_path.begin(), a.plugin_path.end());
+    std::optional<Scene> scene;
+    if (!a.scene.empty()) {
+      scene = load_scene(a.scene);
+      dirs.insert(dirs.end(), scene->plugin_path.begin(), scene->plugin_path.end());
+    }
+    std::string name = a.plugin;
+    if (name.empty()) {
+      if (!scene) throw SceneError("give a plugin name or path, or --scene with --force-index");
+      if (a.force_index >= scene->forces.size())
+        throw SceneError(scene->label + ": --force-index " + std::to_string(a.force_index) +
+                         ": the scene has " + std::to_string(scene->forces.size()) + " force(s)");
+      name = scene->forces[a.force_index].name;
+    }
+    PluginLoader loader(plugin_search_dirs(dirs));
+    const bool is_path = name.find('/') != std::string::npos ||
+                         (name.size() > 3 && name.substr(name.size() - 3) == ".so");
+    plugin = is_path ? loader.load_path(name, "") : loader.load(name);
     CheckOptions opt;
+    opt.topology = a.topology;
+    if (scene) {
+      opt.scene = &*scene;
+      opt.force_index = a.force_index;
+    }
     opt.params = parse_params(a);
     opt.seed = a.seed;
     opt.trials = a.trials;
@@ -72,8 +101,9 @@ void add_check_plugin_command(CLI::App& app) {
       "check-plugin",
       "Check a force plugin's physics on random states: f = -grad E, df/dx, df/dv by finite "
       "differences, momentum, rigid invariance, degenerate states, dissipation");
-  cmd->add_option("plugin", args->plugin, "plugin name (searched) or path to a .so file")
-      ->required();
+  cmd->add_option("plugin", args->plugin,
+                  "plugin name (searched) or path to a .so file; with --scene, default: the "
+                  "scene's force at --force-index");
   cmd->add_option("--param,-p", args->params, "parameter for the instances, key=value (repeat)");
   cmd->add_option("--params", args->params_json, "parameters as a JSON object");
   cmd->add_option("--seed", args->seed, "random seed for the states");
@@ -81,6 +111,19 @@ void add_check_plugin_command(CLI::App& app) {
   cmd->add_flag("--assume-internal", args->assume_internal,
                 "run the internal-force checks even if the plugin does not declare INTERNAL");
   cmd->add_flag("--json", args->json, "print the report as JSON");
+  cmd->add_option("--topology", args->topology,
+                  "elements the random states carry: chain (random points, an open chain; "
+                  "default for a fixed arity), ring (a closed ring; default for whole-body "
+                  "plugins), grid (a grid blob), body (two bodies, every element set)")
+      ->check(CLI::IsMember(check_topologies()));
+  cmd->add_option("--scene", args->scene,
+                  "check on a scene's own force: its elements, parameters (-p overrides them) "
+                  "and states around its initial state");
+  cmd->add_option("--force-index", args->force_index,
+                  "with --scene: which entry of the scene's \"forces\" (default 0)");
+  cmd->add_option("--plugin-path", args->plugin_path,
+                  "folder searched first for a plugin given by name (repeat); otherwise "
+                  "$PINSIM_PLUGIN_PATH, the install and the build tree are searched");
   cmd->callback([args] {
     const int code = run_check_plugin(*args);
     if (code != 0) throw CLI::RuntimeError(code);

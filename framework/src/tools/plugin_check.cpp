@@ -15,6 +15,7 @@
 #include <stdexcept>
 
 #include "core/param_validation.hpp"
+#include "tools/check_layout.hpp"
 
 namespace pinsim {
 
@@ -70,16 +71,16 @@ std::string dof_name(Eigen::Index j) {
 class Instance {
  public:
   Instance(const pinsim_plugin* t, const std::string& params, const Sample& initial,
-           const std::vector<uint32_t>& elements, uint32_t arity)
+           const CheckLayout& layout)
       : t_(t) {
     const pinsim_state_view iv = initial.view();
     pinsim_create_args a{};
     a.params_json = params.c_str();
     a.scene_json = nullptr;
     a.initial = &iv;
-    a.elements = elements.data();
-    a.n_elements = arity == 0 ? 0 : elements.size() / arity;
-    a.arity = arity;
+    a.elements = layout.elements.data();
+    a.n_elements = layout.count;
+    a.arity = layout.arity;
     a.context = "check-plugin";
     char msg[1024] = {0};
     pinsim_error err{msg, sizeof msg};
@@ -151,10 +152,20 @@ class Checker {
  public:
   Checker(const LoadedPlugin& p, const CheckOptions& o) : plugin_(p), t_(p.table), opt_(o) {
     rng_.seed(o.seed);
-    arity_ = std::max<uint32_t>(t_->arity, 1);
-    n_ = std::max<std::size_t>(6, arity_ + 4);
-    params_ = validate_params(*t_, o.params, "check-plugin: params").dump();
-    make_elements();
+    if (o.scene != nullptr) {
+      layout_ = scene_layout(*o.scene, o.force_index, t_->arity);
+      const ForceSpec& f = o.scene->forces[o.force_index];
+      if (f.name != t_->name)
+        throw SceneError(f.where + ".type: is '" + f.name + "', not the plugin checked ('" +
+                         t_->name + "')");
+      nlohmann::json params = f.params.is_object() ? f.params : nlohmann::json::object();
+      for (const auto& [k, v] : o.params.items()) params[k] = v;
+      params_ = validate_params(*t_, params, f.where + ".params").dump();
+    } else {
+      layout_ = topology_layout(o.topology, t_->arity);
+      params_ = validate_params(*t_, o.params, "check-plugin: params").dump();
+    }
+    n_ = layout_.n;
   }
 
   CheckReport run();
@@ -163,7 +174,8 @@ class Checker {
   // --- states -------------------------------------------------------------------------
   double uni(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng_); }
 
-  /// Random positions in [-1, 1]^2 at least 0.2 apart, random velocities and masses.
+  /// Random positions in [-1, 1]^2 at least 0.2 apart (or the layout's reference
+  /// positions perturbed), random velocities, random masses (or the scene's).
   Sample random_state(bool moving = true) {
     Sample s;
     const auto n = static_cast<Eigen::Index>(n_);
@@ -171,6 +183,18 @@ class Checker {
     s.v.resize(2, n);
     s.w.resize(n);
     s.r = VectorXd::Constant(n, 0.05);
+    if (layout_.x.cols() == n) {
+      for (Eigen::Index i = 0; i < n; ++i) {
+        s.x.col(i) = layout_.x.col(i) + layout_.noise * Vector2d(uni(-1, 1), uni(-1, 1));
+        s.v.col(i) = moving ? Vector2d(uni(-1, 1), uni(-1, 1)) : Vector2d::Zero();
+        s.w[i] = uni(0.5, 2.0);
+      }
+      if (layout_.from_scene()) {
+        s.w = layout_.inv_mass;
+        s.r = layout_.radius;
+      }
+      return s;
+    }
     for (Eigen::Index i = 0; i < n; ++i) {
       for (int tries = 0; tries < 1000; ++tries) {
         s.x.col(i) = Vector2d(uni(-1, 1), uni(-1, 1));
@@ -184,23 +208,20 @@ class Checker {
     return s;
   }
 
-  void make_elements() {
-    elements_.clear();
-    if (arity_ == 1) {
-      for (uint32_t i = 0; i < n_; ++i) elements_.push_back(i);
-      return;
-    }
-    // Sliding windows (a chain, a strand's triples), then for pairs two extra random ones.
-    for (uint32_t i = 0; i + arity_ <= n_; ++i)
-      for (uint32_t k = 0; k < arity_; ++k) elements_.push_back(i + k);
-    if (arity_ == 2) {
-      elements_.insert(elements_.end(),
-                       {0, static_cast<uint32_t>(n_ - 1), 1, static_cast<uint32_t>(n_ - 2)});
-    }
+  /// The state instances are created from (rest lengths, angles, areas): a random one, or
+  /// a scene's own initial state.
+  Sample rest_state() {
+    if (!layout_.from_scene()) return random_state();
+    Sample s;
+    s.x = layout_.x;
+    s.v = layout_.v;
+    s.w = layout_.inv_mass;
+    s.r = layout_.radius;
+    return s;
   }
 
   std::unique_ptr<Instance> make(const Sample& initial) {
-    return std::make_unique<Instance>(t_, params_, initial, elements_, arity_);
+    return std::make_unique<Instance>(t_, params_, initial, layout_);
   }
 
   // --- finite differences ----------------------------------------------------------------
@@ -249,10 +270,9 @@ class Checker {
   const pinsim_plugin* t_;
   CheckOptions opt_;
   std::mt19937_64 rng_;
-  uint32_t arity_ = 1;
+  CheckLayout layout_;
   std::size_t n_ = 6;
   std::string params_;
-  std::vector<uint32_t> elements_;
 };
 
 constexpr double kStep = 1e-4;  // finite-difference step at scene scale 1
@@ -267,7 +287,7 @@ CheckResult Checker::gradient_check() {
     return r;
   }
   for (int trial = 0; trial < opt_.trials; ++trial) {
-    const Sample init = random_state();
+    const Sample init = rest_state();
     Sample s = random_state(false);  // v = 0: only the conservative part
     auto inst = make(init);
     const VectorXd f = inst->force(s);
@@ -311,7 +331,7 @@ CheckResult Checker::jacobian_check(int which) {
     return r;
   }
   for (int trial = 0; trial < opt_.trials; ++trial) {
-    const Sample init = random_state();
+    const Sample init = rest_state();
     const Sample s = random_state();
     auto inst = make(init);
     const MatrixXd k = inst->jacobian(s, which);
@@ -358,7 +378,7 @@ CheckResult Checker::momentum_check(bool angular) {
     return r;
   }
   for (int trial = 0; trial < opt_.trials; ++trial) {
-    const Sample init = random_state();
+    const Sample init = rest_state();
     const Sample s = random_state();
     auto inst = make(init);
     const VectorXd fv = inst->force(s);
@@ -395,7 +415,7 @@ CheckResult Checker::invariance_check() {
   }
   const bool has_e = (t_->capabilities & PINSIM_CAP_ENERGY) != 0;
   for (int trial = 0; trial < opt_.trials; ++trial) {
-    const Sample init = random_state();
+    const Sample init = rest_state();
     const Sample s = random_state();
     auto inst = make(init);
     const double th = uni(-M_PI, M_PI);
@@ -466,7 +486,7 @@ CheckResult Checker::degenerate_check() {
     for (Eigen::Index i = 0; i < m.size(); ++i) c += std::isfinite(m.data()[i]) ? 0 : 1;
     return c;
   };
-  const Sample other = random_state();
+  const Sample other = rest_state();
   for (const auto& [init_name, init] : states) {
     // Once as the evaluated state of an instance made from a random initial state, once as
     // the initial state itself (rest lengths and angles taken from a degenerate shape).
@@ -510,8 +530,13 @@ CheckResult Checker::dissipation_check() {
                 0.0,
                 opt_.identity_tolerance,
                 ""};
+  if (!(t_->capabilities & PINSIM_CAP_DISSIPATIVE)) {
+    r.status = CheckStatus::Skip;
+    r.detail = "no damping (PINSIM_CAP_DISSIPATIVE not declared)";
+    return r;
+  }
   for (int trial = 0; trial < opt_.trials; ++trial) {
-    const Sample init = random_state();
+    const Sample init = rest_state();
     const Sample s = random_state();
     Sample still = s;
     still.v.setZero();
@@ -545,14 +570,14 @@ CheckReport Checker::run() {
   CheckReport rep;
   rep.plugin = t_->name;
   rep.path = plugin_.path.string();
+  rep.layout = layout_.description;
   // Creation first: if the plugin cannot even be instantiated, the rest is moot.
   CheckResult create{
       "create", "instances build from random states and element lists", CheckStatus::Pass, 0.0, 0.0,
       ""};
   try {
-    make(random_state());
-    create.detail = std::to_string(elements_.size() / arity_) + " elements of arity " +
-                    std::to_string(arity_) + " on " + std::to_string(n_) + " particles";
+    make(rest_state());
+    create.detail = layout_.description;
   } catch (const std::exception& e) {
     create.status = CheckStatus::Fail;
     create.detail = e.what();
@@ -613,6 +638,9 @@ CheckReport check_force_plugin(const LoadedPlugin& plugin, const CheckOptions& o
   if (!plugin.is_force())
     throw LoadError(plugin.path.string() + ": '" + plugin.name() +
                     "' is not a force plugin; check-plugin checks force plugins");
+  if (opt.scene != nullptr && opt.force_index >= opt.scene->forces.size())
+    throw SceneError(opt.scene->label + ": --force-index " + std::to_string(opt.force_index) +
+                     ": the scene has " + std::to_string(opt.scene->forces.size()) + " force(s)");
   TrapsOff traps;
   Checker c(plugin, opt);
   return c.run();
@@ -621,6 +649,7 @@ CheckReport check_force_plugin(const LoadedPlugin& plugin, const CheckOptions& o
 std::string format_report(const CheckReport& rep) {
   std::ostringstream o;
   o << "check-plugin " << rep.plugin << " (" << rep.path << ")\n";
+  if (!rep.layout.empty()) o << "  on " << rep.layout << "\n";
   for (const auto& c : rep.checks) {
     char line[160];
     std::snprintf(line, sizeof line, "  %-4s  %-17s worst %-9s tol %-8s ", status_name(c.status),
@@ -639,6 +668,7 @@ nlohmann::json report_json(const CheckReport& rep) {
   nlohmann::json j;
   j["plugin"] = rep.plugin;
   j["path"] = rep.path;
+  j["layout"] = rep.layout;
   j["passed"] = rep.passed();
   j["checks"] = nlohmann::json::array();
   for (const auto& c : rep.checks) {

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "core/plugin_loader.hpp"
+#include "core/scene.hpp"
 
 namespace pinsim {
 
@@ -27,6 +28,13 @@ struct CheckOptions {
   double identity_tolerance = 1e-9;
   /// Run only this check (after "create"); empty: all of them.
   std::string only;
+  /// Element topology of the random states (check_layout.hpp): "chain", "ring", "grid",
+  /// "body"; empty: chain for a fixed arity, ring for whole-body (arity 0) plugins.
+  std::string topology;
+  /// Check on this scene's force `force_index` instead: its elements, its parameters
+  /// (`params` override them) and states perturbed around its initial state.
+  const Scene* scene = nullptr;
+  std::size_t force_index = 0;
 };
 
 enum class CheckStatus { Pass, Fail, Skip };
@@ -44,6 +52,7 @@ struct CheckResult {
 struct CheckReport {
   std::string plugin;  ///< plugin name
   std::string path;    ///< library file
+  std::string layout;  ///< the states and elements checked, e.g. "topology ring: ..."
   std::vector<CheckResult> checks;
   /// True when no check failed (skipped checks do not fail).
   bool passed() const;
