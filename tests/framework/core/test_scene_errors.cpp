@@ -126,3 +126,38 @@ TEST_CASE("scene errors: --set overrides values") {
   CHECK(s.steps() == 2000);
   CHECK(s.forces[0].params["g"][1] == -1);
 }
+
+TEST_CASE("scene: whole-body elements from a body's set or an explicit list of lists") {
+  const char* text = R"({
+    "time": {"dt": 0.01, "duration": 1.0},
+    "bodies": [{"type": "ring_blob", "name": "blob", "center": [0, 0], "count": 6}],
+    "forces": [{"type": "area_pressure", "elements": {"body": "blob", "set": "boundary"}}]
+  })";
+  const Scene s = parse_scene(text, "whole.json", ".");
+  CHECK(s.resolve_elements(s.forces[0], 0) == std::vector<uint32_t>{6, 0, 1, 2, 3, 4, 5});
+  PluginLoader loader(plugin_search_dirs());
+  REQUIRE_NOTHROW(Simulation(s, loader));
+  // Explicit lists: each element is a list of any length, stored length first.
+  const Scene e =
+      parse_scene(text, "whole.json", ".", {"forces[0].elements=[[0, 1, 2], [2, 3, 4, 5]]"});
+  CHECK(e.resolve_elements(e.forces[0], 0) == std::vector<uint32_t>{3, 0, 1, 2, 4, 2, 3, 4, 5});
+}
+
+TEST_CASE("scene errors: whole-body forces name the set and what they need") {
+  const char* text = R"({
+    "time": {"dt": 0.01, "duration": 1.0},
+    "bodies": [{"type": "ring_blob", "name": "blob", "center": [0, 0], "count": 6}],
+    "forces": [{"type": "area_pressure", "elements": {"body": "blob", "set": "boundary"}}]
+  })";
+  REQUIRE_THROWS_WITH(build({"forces[0].elements.set=edges"}, text),
+                      Contains("bad.json: forces[0].elements.set: set 'edges' of body 'blob' has "
+                               "elements of 2 particles, but plugin 'area_pressure' needs whole "
+                               "bodies (elements of any length)"));
+  REQUIRE_THROWS_WITH(build({"forces[0].type=linear_spring"}, text),
+                      Contains("has whole bodies (elements of any length), but plugin "
+                               "'linear_spring' needs elements of 2 particles"));
+  REQUIRE_THROWS_WITH(build({"forces[0].elements=[[0, 1, 2], []]"}, text),
+                      Contains("forces[0].elements[1]: expected a list of particle indices"));
+  REQUIRE_THROWS_WITH(build({"forces[0].elements=[[0, 1]]"}, text),
+                      Contains("bad.json: forces[0]: element 0 has 2 particle(s)"));
+}

@@ -1,0 +1,43 @@
+// AreaPressure: keeps the area of each closed ring (a blob's boundary) near its rest area,
+// E = k/2 (A - A0)^2 with the shoelace area A, plus an optional damping of dA/dt. A
+// whole-body force: each element is one ring of any length (PINSIM_ARITY_VARIABLE).
+#pragma once
+
+#include <pinsim/plugin.hpp>
+#include <vector>
+
+namespace pinsim::plugins {
+
+class AreaPressure {
+ public:
+  static PluginInfo info();
+  explicit AreaPressure(const CreateContext& ctx);
+
+  /// f_i = -(k (A - A0) + kd dA/dt) dA/dp_i on every particle of every ring.
+  void add_force(const StateView& s, ForceOut& f) const;
+  /// E = sum over rings of k/2 (A - A0)^2.
+  double energy(const StateView& s) const;
+  /// df_i/dp_j = -k g_i g_jᵀ - kd g_i h_jᵀ - (k (A - A0) + kd dA/dt) H_ij (dense per ring).
+  void add_dfdx(const StateView& s, Triplets& J) const;
+  /// df_i/dv_j = -kd g_i g_jᵀ.
+  void add_dfdv(const StateView& s, Triplets& J) const;
+
+  /// Signed rest area A0 of ring e, scene units^2.
+  double rest_area(std::size_t e) const { return rest_[e]; }
+  /// Signed shoelace area of ring e at positions x (> 0 counter-clockwise).
+  double area(const StateView& s, std::size_t e) const;
+
+ private:
+  /// The ring's area gradient g_i = dA/dp_i and its rate dA/dt = sum g_i·v_i.
+  double gradient(const StateView& s, std::size_t e, std::vector<Vec2>& g) const;
+  std::size_t rings() const { return rest_.size(); }
+  uint32_t at(std::size_t e, std::size_t k) const { return idx_[start_[e] + k]; }
+  std::size_t size(std::size_t e) const { return start_[e + 1] - start_[e]; }
+
+  double k_, kd_;
+  std::vector<uint32_t> idx_;       ///< the rings' particles, one ring after another
+  std::vector<std::size_t> start_;  ///< ring e is idx_[start_[e] .. start_[e+1])
+  std::vector<double> rest_;        ///< A0 per ring
+};
+
+}  // namespace pinsim::plugins
