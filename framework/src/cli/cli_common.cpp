@@ -1,6 +1,12 @@
 #include "cli_common.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "core/json_read.hpp"
 
 namespace pinsim::cli {
 
@@ -8,6 +14,45 @@ Scene load_scene_or_default(const std::string& file, const std::vector<std::stri
   if (!file.empty()) return load_scene(file, overrides);
   return parse_scene(kDefaultSceneText, std::string("<embedded ") + kDefaultSceneName + ">",
                      std::filesystem::current_path(), overrides);
+}
+
+std::vector<std::string> with_backend(const std::string& file, const std::string& backend,
+                                      const std::vector<std::string>& overrides) {
+  if (backend.empty()) return overrides;
+  std::string text = kDefaultSceneText, label = std::string("<embedded ") + kDefaultSceneName + ">";
+  if (!file.empty()) {
+    std::ifstream in(file);
+    if (!in) return overrides;  // load_scene names the problem
+    std::stringstream ss;
+    ss << in.rdbuf();
+    text = ss.str();
+    label = file;
+  }
+  const nlohmann::json doc = parse_json_text(text, label);
+  if (!doc.is_object()) return overrides;
+  const nlohmann::json b = doc.value("backend", nlohmann::json());
+  const std::string current =
+      b.is_string() ? b.get<std::string>()
+                    : (b.is_object() ? b.value("name", std::string("none")) : std::string("none"));
+  if (current == backend) return overrides;
+  nlohmann::json params = nlohmann::json::object();
+  const nlohmann::json cc = doc.value("crosscheck", nlohmann::json());
+  const nlohmann::json cp =
+      cc.is_object() ? cc.value("params", nlohmann::json()) : nlohmann::json();
+  if (cp.is_object() && cp.contains(backend) && cp[backend].is_object()) {
+    params = cp[backend];
+    spdlog::info("{}: --backend {}: using the scene's crosscheck.params.{} {}", label, backend,
+                 backend, params.dump());
+  } else {
+    spdlog::debug(
+        "{}: --backend {}: the scene gives no crosscheck.params.{}; {} starts from its "
+        "defaults (--set backend.params.KEY=VALUE sets them)",
+        label, backend, backend, backend);
+  }
+  std::vector<std::string> out;
+  out.push_back("backend=" + nlohmann::json{{"name", backend}, {"params", params}}.dump());
+  out.insert(out.end(), overrides.begin(), overrides.end());
+  return out;
 }
 
 }  // namespace pinsim::cli

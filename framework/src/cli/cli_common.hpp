@@ -16,4 +16,11 @@ extern const char* const kDefaultSceneText;
 /// Loads the scene file, or the embedded default scene when `file` is empty.
 Scene load_scene_or_default(const std::string& file, const std::vector<std::string>& overrides);
 
+/// The overrides for `--backend NAME` followed by `--set` ones: the scene's backend becomes
+/// NAME with the scene's own `crosscheck.params.NAME` when it has them (else NAME's
+/// defaults), logged; the user's overrides apply after, so `--set backend.params.k=v`
+/// sets the chosen backend's parameters. Unchanged when NAME is empty or the scene's own.
+std::vector<std::string> with_backend(const std::string& file, const std::string& backend,
+                                      const std::vector<std::string>& overrides);
+
 }  // namespace pinsim::cli

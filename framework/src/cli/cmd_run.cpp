@@ -28,10 +28,9 @@ struct RunArgs {
 };
 
 int run_command(const RunArgs& a) {
-  Scene scene = load_scene_or_default(a.scene, a.set);
+  Scene scene = load_scene_or_default(a.scene, with_backend(a.scene, a.backend, a.set));
   PluginLoader loader(plugin_search_dirs(scene.plugin_path));
   RunSettings rs;
-  rs.options.backend = a.backend;
   rs.options.integrator = a.integrator;
   if (!a.out.empty()) rs.out = a.out;
   rs.overwrite = a.overwrite;
@@ -47,8 +46,8 @@ int run_command(const RunArgs& a) {
   std::signal(SIGINT, on_signal);
   std::signal(SIGTERM, on_signal);
   spdlog::debug("{}: {} particles, {} force(s), backend {}, {} steps of dt = {}", scene.label,
-                scene.particles.size(), scene.forces.size(),
-                a.backend.empty() ? scene.backend.name : a.backend, scene.steps(), scene.dt);
+                scene.particles.size(), scene.forces.size(), scene.backend.name, scene.steps(),
+                scene.dt);
   RunResult r = run_scene(scene, loader, rs);
   if (tty) std::fprintf(stderr, "\r%*s\r", 40, "");
   const auto& s = r.summary;
@@ -69,7 +68,10 @@ void add_run_command(CLI::App& app) {
   c->add_option("scene", a->scene, "Scene file (JSON); default: the embedded pinball table");
   c->add_option("--out,-o", a->out, "Output folder for trajectory.csv, events.csv, summary.json");
   c->add_option("--set", a->set, "Override a scene value, e.g. --set time.dt=0.0005")->take_all();
-  c->add_option("--backend", a->backend, "Use this collision backend instead of the scene's");
+  c->add_option("--backend", a->backend,
+                "Use this collision backend instead of the scene's, with the scene's "
+                "crosscheck.params.NAME if it has them; --set backend.params.KEY=VALUE after it "
+                "sets its parameters");
   c->add_option("--integrator", a->integrator,
                 "Use this integrator instead of the scene's (explicit_euler, symplectic_euler, "
                 "velocity_verlet, rk4, implicit_euler)");

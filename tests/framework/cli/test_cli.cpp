@@ -54,6 +54,30 @@ TEST_CASE("cli: --set, --integrator and --backend reach the run") {
   CHECK(s["integrator"] == "velocity_verlet");
 }
 
+TEST_CASE("cli: --backend box2d on the pinball table uses the scene's crosscheck.params.box2d") {
+  // The table's round top needs box2d's curve_segments, which the scene gives only in
+  // crosscheck.params.box2d; before, --backend dropped them and the run failed.
+  const auto dir = test::temp_dir("cli-box2d");
+  auto r = pinsim_cli("run " + configs + "/pinball.json --backend box2d --out " + dir.string());
+  INFO(r.output);
+  CHECK(r.code == 0);
+  CHECK_THAT(r.output, Contains("--backend box2d: using the scene's crosscheck.params.box2d") &&
+                           Contains("\"curve_segments\":256"));
+  auto s = nlohmann::json::parse(test::read_file(dir / "summary.json"));
+  CHECK(s["backend"] == "box2d");
+  CHECK(s["status"] == "ok");
+  // --set after --backend sets the chosen backend's parameters (scene.json is the scene as
+  // run); here a coarser round top, on a short run.
+  const auto dir2 = test::temp_dir("cli-box2d-set");
+  r = pinsim_cli("-q run " + configs + "/pinball.json --backend box2d --set " +
+                 "backend.params.curve_segments=64 --set time.duration=0.5 --out " + dir2.string());
+  CHECK(r.code == 0);
+  const auto ran = nlohmann::json::parse(test::read_file(dir2 / "scene.json"));
+  CHECK(ran["backend"]["name"] == "box2d");
+  CHECK(ran["backend"]["params"]["curve_segments"] == 64);
+  CHECK(ran["backend"]["params"]["rest_speed"] == 0.005);  // the rest from crosscheck.params
+}
+
 TEST_CASE("cli: bad input gives one error line and a non-zero exit") {
   const auto dir = test::temp_dir("cli-bad");
   test::write_file(dir / "broken.json", "{ \"time\": ");
