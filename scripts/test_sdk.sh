@@ -50,16 +50,36 @@ got=$(first_found "$TMP/moved/bin/pinsim" sdf)
 "$TMP/moved/bin/pinsim" -q run "$ROOT/configs/empty_box.json" --out "$TMP/moved_out"
 [ -s "$TMP/moved_out/trajectory.csv" ] || { echo "the moved install wrote no trajectory" >&2; exit 1; }
 
-step "build sdk/template_plugin out of tree against the installed SDK"
+step "build sdk/template_plugin out of tree against the installed SDK, exactly as documented"
 cp -r "$ROOT/sdk/template_plugin" "$TMP/src"
-run_logged configure cmake -S "$TMP/src" -B "$TMP/build" -DCMAKE_BUILD_TYPE=Release \
-  -DCMAKE_PREFIX_PATH="$TMP/prefix"
-run_logged build cmake --build "$TMP/build" -j2
+# No -DCMAKE_BUILD_TYPE: the package must make it an optimised (Release) build.
+run_logged configure cmake -S "$TMP/src" -B "$TMP/build" -DCMAKE_PREFIX_PATH="$TMP/prefix"
+build_type=$(sed -n 's/^CMAKE_BUILD_TYPE:[A-Z]*=//p' "$TMP/build/CMakeCache.txt")
+[ "$build_type" = "Release" ] || {
+  echo "the template configured without a build type is '$build_type', not Release" >&2
+  exit 1
+}
+run_logged build cmake --build "$TMP/build" -j2 --verbose
+grep -q -- '-O3' "$TMP/build.log" || { echo "the template was not compiled with -O3" >&2; exit 1; }
 SO="$TMP/build/libpinsim_plugin_my_anchor.so"
 [ -f "$SO" ] || { echo "the template did not produce $SO" >&2; exit 1; }
+step "an explicit build type is kept"
+run_logged configure_debug cmake -S "$TMP/src" -B "$TMP/build_debug" -DCMAKE_BUILD_TYPE=Debug \
+  -DCMAKE_PREFIX_PATH="$TMP/prefix"
+grep -q '^CMAKE_BUILD_TYPE:STRING=Debug$' "$TMP/build_debug/CMakeCache.txt" || {
+  echo "-DCMAKE_BUILD_TYPE=Debug was overridden" >&2
+  exit 1
+}
 
-step "pinsim check-plugin on the built template"
+step "pinsim check-plugin on the built template, by path and by name"
 "$PINSIM" check-plugin "$SO"
+if "$PINSIM" check-plugin my_anchor >"$TMP/by_name.log" 2>&1; then
+  echo "check-plugin found my_anchor by name without a search path" >&2
+  exit 1
+fi
+grep -q "unknown plugin 'my_anchor'" "$TMP/by_name.log" || { cat "$TMP/by_name.log" >&2; exit 1; }
+PINSIM_PLUGIN_PATH="$TMP/build" "$PINSIM" check-plugin my_anchor -p k=5 >/dev/null
+"$PINSIM" check-plugin my_anchor --plugin-path "$TMP/build" >/dev/null
 
 step "pinsim run a scene that uses it"
 PINSIM_PLUGIN_PATH="$TMP/build:$PLUGINS" "$PINSIM" -q run "$TMP/src/scene.json" --out "$TMP/out"
