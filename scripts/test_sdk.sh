@@ -73,13 +73,13 @@ grep -q '^CMAKE_BUILD_TYPE:STRING=Debug$' "$TMP/build_debug/CMakeCache.txt" || {
 
 step "pinsim check-plugin on the built template, by path and by name"
 "$PINSIM" check-plugin "$SO"
-if "$PINSIM" check-plugin my_anchor >"$TMP/by_name.log" 2>&1; then
+if env -u PINSIM_PLUGIN_PATH "$PINSIM" check-plugin my_anchor >"$TMP/by_name.log" 2>&1; then
   echo "check-plugin found my_anchor by name without a search path" >&2
   exit 1
 fi
 grep -q "unknown plugin 'my_anchor'" "$TMP/by_name.log" || { cat "$TMP/by_name.log" >&2; exit 1; }
 PINSIM_PLUGIN_PATH="$TMP/build" "$PINSIM" check-plugin my_anchor -p k=5 >/dev/null
-"$PINSIM" check-plugin my_anchor --plugin-path "$TMP/build" >/dev/null
+env -u PINSIM_PLUGIN_PATH "$PINSIM" check-plugin my_anchor --plugin-path "$TMP/build" >/dev/null
 
 step "pinsim run a scene that uses it"
 PINSIM_PLUGIN_PATH="$TMP/build:$PLUGINS" "$PINSIM" -q run "$TMP/src/scene.json" --out "$TMP/out"
