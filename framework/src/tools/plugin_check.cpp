@@ -153,11 +153,11 @@ class Checker {
   Checker(const LoadedPlugin& p, const CheckOptions& o) : plugin_(p), t_(p.table), opt_(o) {
     rng_.seed(o.seed);
     if (o.scene != nullptr) {
-      layout_ = scene_layout(*o.scene, o.force_index, t_->arity);
       const ForceSpec& f = o.scene->forces[o.force_index];
       if (f.name != t_->name)
         throw SceneError(f.where + ".type: is '" + f.name + "', not the plugin checked ('" +
                          t_->name + "')");
+      layout_ = scene_layout(*o.scene, o.force_index, t_->arity);
       nlohmann::json params = f.params.is_object() ? f.params : nlohmann::json::object();
       for (const auto& [k, v] : o.params.items()) params[k] = v;
       params_ = validate_params(*t_, params, f.where + ".params").dump();

@@ -26,12 +26,8 @@ Particles square(double s, bool clockwise = false) {
   return p;
 }
 
-/// One whole-body element holding particles 0..n-1 (length-prefixed, PINSIM_ARITY_VARIABLE).
-std::vector<uint32_t> ring(uint32_t n, uint32_t first = 0) {
-  std::vector<uint32_t> e{n};
-  for (uint32_t i = 0; i < n; ++i) e.push_back(first + i);
-  return e;
-}
+/// One whole-body element holding particles 0..3 (length-prefixed, PINSIM_ARITY_VARIABLE).
+const std::vector<uint32_t> kSquare = {4, 0, 1, 2, 3};
 
 const std::vector<std::string> kChecks = {
     "gradient",         "dfdx",       "dfdv",       "momentum", "angular_momentum",
@@ -42,7 +38,7 @@ const std::vector<std::string> kChecks = {
 TEST_CASE("square scaled by s: A = s^2, E = k/2 (s^2 - 1)^2") {
   // Shoelace on the unit square: A = 1/2 sum (x_i y_i+1 - x_i+1 y_i) = 1 = A0 (rest
   // 'initial'); scaled by 1.1: A = 1.21, E = 1000/2 (0.21)^2 = 22.05.
-  Force f("area_pressure", {{"k", 1000.0}}, square(1.0), ring(4));
+  Force f("area_pressure", {{"k", 1000.0}}, square(1.0), kSquare);
   CHECK(f.energy(square(1.0)) == Approx(0.0).margin(1e-12));
   CHECK(f.energy(square(1.1)) == Approx(22.05));
   CHECK(f.force(square(1.0)).norm() == Approx(0.0).margin(1e-12));
@@ -52,7 +48,7 @@ TEST_CASE("compressed square: f_i = -k (A - A0) dA/dp_i points outward") {
   // Scaled by 0.9: A - A0 = 0.81 - 1 = -0.19. dA/dp_0 = 1/2 (y_1 - y_3, x_3 - x_1) =
   // 1/2 (0 - 0.9, 0 - 0.9) = (-0.45, -0.45), so f_0 = -1000 (-0.19) (-0.45, -0.45) =
   // (-85.5, -85.5): away from the centre. By symmetry every corner gets 85.5 sqrt 2.
-  Force f("area_pressure", {{"k", 1000.0}}, square(1.0), ring(4));
+  Force f("area_pressure", {{"k", 1000.0}}, square(1.0), kSquare);
   const Eigen::Matrix2Xd out = f.force(square(0.9));
   CHECK(out(0, 0) == Approx(-85.5));
   CHECK(out(1, 0) == Approx(-85.5));
@@ -66,7 +62,7 @@ TEST_CASE("rest 'value' keeps the ring's orientation: a clockwise ring gets A0 =
   // and the force inflates it: dA/dp_0 = 1/2 (y_1 - y_3, x_3 - x_1) = (0.5, 0.5) with
   // p_1 = (0, 1), p_3 = (1, 0), so f_0 = -1000 (1) (0.5, 0.5) = (-500, -500), outward.
   const Particles cw = square(1.0, true);
-  Force f("area_pressure", {{"k", 1000.0}, {"rest", "value"}, {"rest_area", 2.0}}, cw, ring(4));
+  Force f("area_pressure", {{"k", 1000.0}, {"rest", "value"}, {"rest_area", 2.0}}, cw, kSquare);
   CHECK(f.energy(cw) == Approx(500.0));
   const Eigen::Matrix2Xd out = f.force(cw);
   CHECK(out(0, 0) == Approx(-500.0));
@@ -81,10 +77,8 @@ TEST_CASE("rings of different lengths in one instance: each keeps its own rest a
   p.x.col(1) = Eigen::Vector2d(1, 0);
   p.x.col(2) = Eigen::Vector2d(0, 1);
   for (int i = 0; i < 4; ++i) p.x.col(3 + i) = square(1.0).x.col(i) + Eigen::Vector2d(3, 0);
-  std::vector<uint32_t> el = ring(3);
-  const std::vector<uint32_t> sq = ring(4, 3);
-  el.insert(el.end(), sq.begin(), sq.end());
-  Force f("area_pressure", {{"k", 10.0}}, p, el);
+  // Length-prefixed: the triangle (3; 0, 1, 2), then the square (4; 3, 4, 5, 6).
+  Force f("area_pressure", {{"k", 10.0}}, p, {3, 0, 1, 2, 4, 3, 4, 5, 6});
   Particles q = p;
   for (int i = 3; i < 7; ++i) q.x.col(i) += Eigen::Vector2d(-1.5, 2.0);
   CHECK(f.energy(q) == Approx(0.0).margin(1e-12));
@@ -97,10 +91,8 @@ TEST_CASE("rings of different lengths in one instance: each keeps its own rest a
 }
 
 TEST_CASE("an element of fewer than 3 particles is refused, naming it") {
-  std::vector<uint32_t> el = ring(4);
-  el.insert(el.end(), {2, 0, 1});  // element 1: two particles
-  try {
-    Force f("area_pressure", {}, square(1.0), el);
+  try {  // element 0: the square; element 1: two particles
+    Force f("area_pressure", {}, square(1.0), {4, 0, 1, 2, 3, 2, 0, 1});
     FAIL("created");
   } catch (const std::runtime_error& e) {
     CHECK(std::string(e.what()).find("element 1 has 2 particle(s)") != std::string::npos);
