@@ -224,6 +224,11 @@ int run(const Options& o) {
     cases.push_back(std::move(c));
   }
 
+  // What makes shards parts of one sweep: the config, every case's scene, the options.
+  std::string inputs = "bench\n" + d.dump() + "\nrepeats=" + std::to_string(repeats);
+  for (const Case& c : cases) inputs += "\n" + c.doc.dump();
+
+  if (o.check_only) return 0;
   PluginLoader loader(plugin_search_dirs());
   std::map<std::pair<std::size_t, std::string>, Samples> refs;
   sweep::Table t;
@@ -263,7 +268,16 @@ int run(const Options& o) {
                       std::to_string(r.contacts), r.status});
   }
   const fs::path csv = o.out / ("bench" + o.shard.suffix() + ".csv");
-  t.write(csv);
+  if (o.shard.count == 1) {
+    t.write(csv);
+  } else {
+    sweep::Manifest m;
+    m.tool = "bench";
+    m.sweep = sweep::fingerprint(inputs);
+    m.shard = o.shard;
+    m.points = points.size();
+    sweep::write_shard(t, csv, m);
+  }
   spdlog::info("wrote {}", csv.string());
   if (o.shard.count == 1)
     report(t, o.out);

@@ -13,7 +13,8 @@ struct Options {
   std::filesystem::path config;
   std::filesystem::path out = "out/bench";
   sweep::Shard shard;
-  int repeats = -1;  ///< overrides the config's "repeats" when >= 0
+  bool check_only = false;  ///< read and check the config, run and write nothing
+  int repeats = -1;         ///< overrides the config's "repeats" when >= 0
 };
 
 /// Runs this shard's points, writes OUT/bench[.shard-i-of-N].csv; for a whole sweep also

@@ -235,6 +235,11 @@ int run(const Options& o) {
     cases.push_back(std::move(c));
   }
 
+  // What makes shards parts of one sweep: the config, every case's scene, the options.
+  std::string inputs = "stress\n" + d.dump();
+  for (const Case& c : cases) inputs += "\n" + c.doc.dump();
+
+  if (o.check_only) return 0;
   PluginLoader loader(plugin_search_dirs());
   std::map<std::pair<std::size_t, double>, double> wmax;
   sweep::Table t;
@@ -273,7 +278,16 @@ int run(const Options& o) {
                       sweep::num(r.drift), std::to_string(r.steps), sweep::num(r.wall)});
   }
   const fs::path csv = o.out / ("stress" + o.shard.suffix() + ".csv");
-  t.write(csv);
+  if (o.shard.count == 1) {
+    t.write(csv);
+  } else {
+    sweep::Manifest m;
+    m.tool = "stress";
+    m.sweep = sweep::fingerprint(inputs);
+    m.shard = o.shard;
+    m.points = points.size();
+    sweep::write_shard(t, csv, m);
+  }
   spdlog::info("wrote {}", csv.string());
   if (o.shard.count == 1)
     report(t, o.out);

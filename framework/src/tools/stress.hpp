@@ -15,6 +15,7 @@ struct Options {
   std::filesystem::path config;
   std::filesystem::path out = "out/stress";
   sweep::Shard shard;
+  bool check_only = false;  ///< read and check the config, run and write nothing
 };
 
 /// Runs this shard's points, writes OUT/stress[.shard-i-of-N].csv; for a whole sweep also

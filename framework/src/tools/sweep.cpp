@@ -1,12 +1,16 @@
 #include "tools/sweep.hpp"
 
 #include <spdlog/spdlog.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <sstream>
 
 #include "core/scene_error.hpp"
@@ -54,16 +58,97 @@ std::vector<std::string> split(const std::string& line) {
 }
 }  // namespace
 
-void Table::write(const fs::path& file) const {
-  if (file.has_parent_path()) fs::create_directories(file.parent_path());
-  std::ofstream out(file);
+std::string Table::text() const {
+  std::string out;
   auto line = [&out](const std::vector<std::string>& cells) {
-    for (std::size_t i = 0; i < cells.size(); ++i) out << (i ? "," : "") << cells[i];
-    out << '\n';
+    for (std::size_t i = 0; i < cells.size(); ++i) {
+      if (i) out += ',';
+      out += cells[i];
+    }
+    out += '\n';
   };
   line(header);
   for (const auto& r : rows) line(r);
-  if (!out) throw SceneError(file.string() + ": cannot be written");
+  return out;
+}
+
+void Table::write(const fs::path& file) const { write_atomically(file, text()); }
+
+void write_atomically(const fs::path& file, const std::string& bytes) {
+  if (file.has_parent_path()) fs::create_directories(file.parent_path());
+  // Unique per process, in the same folder (rename is atomic only within a file system).
+  fs::path tmp = file;
+  tmp += ".tmp." + std::to_string(::getpid());
+  {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    out << bytes;
+    out.flush();
+    if (!out) {
+      std::error_code ec;
+      fs::remove(tmp, ec);
+      throw SceneError(file.string() + ": cannot be written");
+    }
+  }
+  std::error_code ec;
+  fs::rename(tmp, file, ec);
+  if (ec) {
+    fs::remove(tmp, ec);
+    throw SceneError(file.string() + ": cannot be written (rename failed: " + ec.message() + ")");
+  }
+}
+
+std::string fingerprint(std::string_view bytes) {
+  std::uint64_t h = 1469598103934665603ull;  // FNV-1a, 64 bit
+  for (unsigned char c : bytes) {
+    h ^= c;
+    h *= 1099511628211ull;
+  }
+  char buf[17];
+  std::snprintf(buf, sizeof buf, "%016llx", static_cast<unsigned long long>(h));
+  return buf;
+}
+
+fs::path manifest_path(const fs::path& csv) {
+  fs::path m = csv;
+  m.replace_extension(".json");
+  return m;
+}
+
+void write_shard(const Table& t, const fs::path& csv, Manifest m) {
+  const std::string bytes = t.text();
+  m.rows = t.rows.size();
+  m.csv_hash = fingerprint(bytes);
+  const nlohmann::json j = {{"tool", m.tool},
+                            {"sweep", m.sweep},
+                            {"shard", m.shard.index},
+                            {"shards", m.shard.count},
+                            {"points", m.points},
+                            {"rows", m.rows},
+                            {"csv", csv.filename().string()},
+                            {"csv_hash", m.csv_hash}};
+  write_atomically(csv, bytes);
+  write_atomically(manifest_path(csv), j.dump(1) + "\n");
+}
+
+std::optional<Manifest> read_manifest(const fs::path& csv) {
+  const fs::path p = manifest_path(csv);
+  std::ifstream in(p);
+  if (!in) return std::nullopt;
+  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  Manifest m;
+  try {
+    if (!j.is_object()) throw std::runtime_error("not a JSON object");
+    m.tool = j.at("tool").get<std::string>();
+    m.sweep = j.at("sweep").get<std::string>();
+    m.shard.index = j.at("shard").get<int>();
+    m.shard.count = j.at("shards").get<int>();
+    m.points = j.at("points").get<std::size_t>();
+    m.rows = j.at("rows").get<std::size_t>();
+    m.csv_hash = j.at("csv_hash").get<std::string>();
+  } catch (const std::exception& e) {
+    throw SceneError(p.string() + ": not a shard manifest (" + e.what() + ")");
+  }
+  return m;
 }
 
 Table Table::read(const fs::path& file) {
@@ -80,16 +165,67 @@ Table Table::read(const fs::path& file) {
 
 Table merge(const std::vector<fs::path>& files) {
   if (files.empty()) throw SceneError("merge: no CSV files given");
-  Table all = Table::read(files[0]);
-  for (std::size_t i = 1; i < files.size(); ++i) {
-    Table t = Table::read(files[i]);
-    if (t.header != all.header)
-      throw SceneError(files[i].string() + ": its CSV header differs from " + files[0].string() +
+  Table all;
+  std::optional<Manifest> first;
+  std::map<int, fs::path> seen;  // shard index -> its file
+  for (const fs::path& f : files) {
+    std::ifstream probe(f);
+    if (!probe) throw SceneError(f.string() + ": cannot be read");
+    const auto m = read_manifest(f);
+    if (!m)
+      throw SceneError(f.string() + ": no shard manifest " + manifest_path(f).filename().string() +
+                       " beside it (the shard did not finish writing, or it is not a shard "
+                       "file); rerun that shard");
+    std::stringstream bytes;
+    bytes << probe.rdbuf();
+    if (fingerprint(bytes.str()) != m->csv_hash)
+      throw SceneError(f.string() +
+                       ": its bytes differ from its manifest (half rewritten, or "
+                       "edited); rerun that shard");
+    if (!first) {
+      first = m;
+    } else if (m->tool != first->tool || m->sweep != first->sweep ||
+               m->shard.count != first->shard.count || m->points != first->points) {
+      throw SceneError(f.string() + ": from a different sweep than " + files[0].string() + " (" +
+                       m->tool + " " + m->sweep + ", " + std::to_string(m->shard.count) +
+                       " shards vs " + first->tool + " " + first->sweep + ", " +
+                       std::to_string(first->shard.count) +
+                       " shards): a different config, rubric, options or shard count");
+    }
+    if (seen.count(m->shard.index))
+      throw SceneError(f.string() + ": shard " + std::to_string(m->shard.index) +
+                       " is given twice (also " + seen[m->shard.index].string() + ")");
+    seen[m->shard.index] = f;
+    Table t = Table::read(f);
+    if (t.rows.size() != m->rows)
+      throw SceneError(f.string() + ": " + std::to_string(t.rows.size()) +
+                       " rows, its manifest says " + std::to_string(m->rows));
+    if (all.header.empty())
+      all.header = t.header;
+    else if (t.header != all.header)
+      throw SceneError(f.string() + ": its CSV header differs from " + files[0].string() +
                        "'s (a different sweep?)");
     all.rows.insert(all.rows.end(), t.rows.begin(), t.rows.end());
   }
-  std::stable_sort(all.rows.begin(), all.rows.end(), [](const auto& a, const auto& b) {
-    return std::strtoull(a[0].c_str(), nullptr, 10) < std::strtoull(b[0].c_str(), nullptr, 10);
+  std::string missing;
+  int n_missing = 0;
+  for (int i = 0; i < first->shard.count; ++i)
+    if (!seen.count(i)) {
+      missing += (n_missing ? ", " : "") + std::to_string(i);
+      ++n_missing;
+    }
+  if (n_missing)
+    throw SceneError("merge: incomplete set: shard" + std::string(n_missing > 1 ? "s " : " ") +
+                     missing + " of " + std::to_string(first->shard.count) + " missing (" +
+                     first->tool + " sweep " + first->sweep + ")");
+  if (all.rows.size() != first->points)
+    throw SceneError("merge: the shards hold " + std::to_string(all.rows.size()) +
+                     " rows, the sweep has " + std::to_string(first->points) + " points");
+  const bool numeric = !all.header.empty() && all.header[0] == "point";
+  std::stable_sort(all.rows.begin(), all.rows.end(), [numeric](const auto& a, const auto& b) {
+    if (numeric)
+      return std::strtoull(a[0].c_str(), nullptr, 10) < std::strtoull(b[0].c_str(), nullptr, 10);
+    return a[0] < b[0];
   });
   return all;
 }

@@ -1,11 +1,14 @@
-// Shared pieces of the bench and stress sweeps: configs, sharding, CSV tables, merging,
-// least-squares orders and optional gnuplot figures.
+// Shared pieces of the bench and stress sweeps (and of batch grading's shards): configs,
+// sharding, CSV tables written atomically, shard manifests, strict merging, least-squares
+// orders and optional gnuplot figures.
 #pragma once
 
 #include <cstddef>
 #include <filesystem>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "core/scene.hpp"
@@ -32,12 +35,47 @@ struct Table {
   std::vector<std::vector<std::string>> rows;
   /// Index of a column; throws SceneError if missing.
   std::size_t col(const std::string& name) const;
+  /// The CSV text: header line, then one line per row.
+  std::string text() const;
+  /// Writes the CSV atomically (temp file + rename): readers never see half a table.
   void write(const std::filesystem::path& file) const;
   static Table read(const std::filesystem::path& file);
 };
 
-/// Joins shard tables with identical headers, sorted by their first column ("point").
-/// Throws SceneError naming the file whose header differs.
+/// Writes `bytes` to a temporary file beside `file`, then renames it over `file`, so the
+/// file is either the old one or the whole new one. Creates the folder. Throws SceneError.
+void write_atomically(const std::filesystem::path& file, const std::string& bytes);
+
+/// 64-bit FNV-1a of `bytes` as 16 hex digits: identifies a sweep's inputs or a file's bytes.
+std::string fingerprint(std::string_view bytes);
+
+/// What one shard's CSV is: written as NAME.json beside NAME.csv after the CSV itself, so a
+/// shard with a manifest that matches its CSV's bytes finished writing. `merge` trusts no
+/// shard without one.
+struct Manifest {
+  std::string tool;        ///< "bench", "stress" or "grade"
+  std::string sweep;       ///< fingerprint of the whole sweep's inputs (config, scenes, options)
+  Shard shard;             ///< which shard of how many
+  std::size_t points = 0;  ///< points (or submissions) of the whole sweep, all shards
+  std::size_t rows = 0;    ///< rows of this shard's CSV
+  std::string csv_hash;    ///< fingerprint of the CSV file's bytes
+};
+
+/// NAME.json for NAME.csv.
+std::filesystem::path manifest_path(const std::filesystem::path& csv);
+
+/// Writes a shard's table to `csv`, then its manifest (rows and csv_hash filled in here),
+/// each atomically. A rerun of the shard replaces both; one killed between the two renames
+/// leaves a manifest that no longer matches, which `merge` refuses.
+void write_shard(const Table& t, const std::filesystem::path& csv, Manifest m);
+
+/// The manifest beside `csv`; nullopt if there is none. Throws SceneError if it is malformed.
+std::optional<Manifest> read_manifest(const std::filesystem::path& csv);
+
+/// Joins the shard CSVs of one sweep. Refuses (SceneError naming the file and what is wrong)
+/// a shard without a manifest or whose bytes differ from it, shards of different sweeps or
+/// shard counts, a shard given twice, missing shards (named by index), different headers.
+/// Rows are sorted by the first column: numerically when it is "point", else as text.
 Table merge(const std::vector<std::filesystem::path>& files);
 
 /// A sweep config: JSON with comments, its folder for relative scene paths.
