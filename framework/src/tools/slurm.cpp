@@ -1,0 +1,591 @@
+#include "tools/slurm.hpp"
+
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <csignal>
+#include <cstdlib>
+#include <fstream>
+#include <iostream>
+#include <map>
+#include <nlohmann/json.hpp>
+#include <optional>
+#include <regex>
+#include <sstream>
+#include <thread>
+
+#include "core/scene_error.hpp"
+#include "tools/sweep.hpp"
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace pinsim::slurm {
+namespace {
+
+// ---- small helpers ------------------------------------------------------------------------
+
+struct Captured {
+  int code = -1;  ///< exit code; -1 if it did not exit normally, 127 if it could not start
+  std::string output;
+};
+
+/// Runs argv (no shell), capturing stdout and stderr together.
+Captured capture(const std::vector<std::string>& argv) {
+  int fds[2];
+  if (::pipe(fds) != 0) throw SceneError("cannot create a pipe to run " + argv[0]);
+  std::fflush(nullptr);
+  const pid_t pid = ::fork();
+  if (pid < 0) throw SceneError("cannot fork to run " + argv[0]);
+  if (pid == 0) {
+    ::dup2(fds[1], STDOUT_FILENO);
+    ::dup2(fds[1], STDERR_FILENO);
+    ::close(fds[0]);
+    ::close(fds[1]);
+    std::vector<char*> c;
+    for (const auto& a : argv) c.push_back(const_cast<char*>(a.c_str()));
+    c.push_back(nullptr);
+    ::execvp(c[0], c.data());
+    ::_exit(127);
+  }
+  ::close(fds[1]);
+  Captured r;
+  char buf[4096];
+  for (;;) {
+    const ssize_t n = ::read(fds[0], buf, sizeof buf);
+    if (n > 0)
+      r.output.append(buf, static_cast<std::size_t>(n));
+    else if (n == 0 || errno != EINTR)
+      break;
+  }
+  ::close(fds[0]);
+  int status = 0;
+  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+  }
+  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return r;
+}
+
+bool on_path(const std::string& name) {
+  const char* path = std::getenv("PATH");
+  std::stringstream ss(path ? path : "/usr/bin:/bin");
+  std::string dir;
+  while (std::getline(ss, dir, ':'))
+    if (!dir.empty() && ::access((fs::path(dir) / name).c_str(), X_OK) == 0) return true;
+  return false;
+}
+
+/// 'text' for bash, with ' escaped.
+std::string quote(const std::string& s) {
+  std::string q = "'";
+  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+std::string trim(std::string s) {
+  while (!s.empty() && std::isspace(static_cast<unsigned char>(s.back()))) s.pop_back();
+  std::size_t b = 0;
+  while (b < s.size() && std::isspace(static_cast<unsigned char>(s[b]))) ++b;
+  return s.substr(b);
+}
+
+/// "0-2,5,7-8" for {0,1,2,5,7,8}.
+std::string ranges(const std::vector<int>& v) {
+  std::string out;
+  for (std::size_t i = 0; i < v.size();) {
+    std::size_t j = i;
+    while (j + 1 < v.size() && v[j + 1] == v[j] + 1) ++j;
+    if (!out.empty()) out += ',';
+    out += std::to_string(v[i]);
+    if (j > i) {
+      out += '-';
+      out += std::to_string(v[j]);
+    }
+    i = j + 1;
+  }
+  return out;
+}
+
+std::string last_lines(const fs::path& file, int n) {
+  std::ifstream in(file);
+  if (!in) return "";
+  std::vector<std::string> lines;
+  std::string line;
+  while (std::getline(in, line)) lines.push_back(line);
+  std::string out;
+  for (std::size_t i = lines.size() > static_cast<std::size_t>(n) ? lines.size() - n : 0;
+       i < lines.size(); ++i)
+    out += "    " + lines[i] + "\n";
+  return out;
+}
+
+// Ctrl-C while following: stop following, leave the job running.
+volatile std::sig_atomic_t g_interrupted = 0;
+extern "C" void on_sigint(int) { g_interrupted = 1; }
+
+// ---- the run's folder: OUT/slurm/ ---------------------------------------------------------
+//   job.sh            the array's script (also for resubmitting by hand)
+//   job.json          what was submitted: tool, N, the shard command, each shard's job id
+//   shard-I.log       Slurm's output of shard I (appended over attempts)
+//   shard-I.status    written by the script when shard I's command has ended (exit code,
+//                     start and end time), atomically; removed when the shard starts again
+
+fs::path slurm_dir(const ArrayJob& j) { return j.out / "slurm"; }
+fs::path status_file(const ArrayJob& j, int i) {
+  return slurm_dir(j) / ("shard-" + std::to_string(i) + ".status");
+}
+fs::path log_file(const ArrayJob& j, int i) {
+  return slurm_dir(j) / ("shard-" + std::to_string(i) + ".log");
+}
+
+struct Status {
+  int exit = -1;
+  double start = 0, end = 0;
+};
+
+std::optional<Status> read_status(const ArrayJob& j, int i) {
+  std::ifstream in(status_file(j, i));
+  if (!in) return std::nullopt;
+  const json s = json::parse(in, nullptr, false);
+  if (!s.is_object() || !s.contains("exit")) return std::nullopt;
+  return Status{s.value("exit", -1), s.value("start", 0.0), s.value("end", 0.0)};
+}
+
+/// Shard i has a complete result: its manifest exists and matches its CSV's bytes.
+bool result_complete(const ArrayJob& j, int i, int n) {
+  const fs::path csv = j.result(i, n);
+  try {
+    const auto m = sweep::read_manifest(csv);
+    if (!m || m->shard.index != i || m->shard.count != n) return false;
+    std::ifstream in(csv, std::ios::binary);
+    if (!in) return false;
+    std::stringstream bytes;
+    bytes << in.rdbuf();
+    return sweep::fingerprint(bytes.str()) == m->csv_hash;
+  } catch (const SceneError&) {
+    return false;
+  }
+}
+
+struct Submission {
+  int shards = 0;
+  std::vector<std::string> command;
+  std::vector<std::string> job_of;  ///< job id of the array each shard was last submitted in
+};
+
+std::optional<Submission> read_submission(const ArrayJob& j) {
+  std::ifstream in(slurm_dir(j) / "job.json");
+  if (!in) return std::nullopt;
+  const json d = json::parse(in, nullptr, false);
+  if (!d.is_object())
+    throw SceneError((slurm_dir(j) / "job.json").string() + ": not valid JSON; remove it");
+  Submission s;
+  s.shards = d.value("shards", 0);
+  s.command = d.value("command", std::vector<std::string>());
+  s.job_of = d.value("jobs", std::vector<std::string>());
+  if (s.shards < 1 || static_cast<int>(s.job_of.size()) != s.shards)
+    throw SceneError((slurm_dir(j) / "job.json").string() + ": malformed; remove it");
+  return s;
+}
+
+void write_submission(const ArrayJob& j, const Submission& s) {
+  const json d = {
+      {"tool", j.tool}, {"shards", s.shards}, {"command", s.command}, {"jobs", s.job_of}};
+  sweep::write_atomically(slurm_dir(j) / "job.json", d.dump(1) + "\n");
+}
+
+/// The job script: array task i runs shard i of n, then records how it ended.
+std::string job_script(const ArrayJob& j, const Request& r, int n) {
+  std::ostringstream s;
+  const std::string dir = slurm_dir(j).string();
+  s << "#!/bin/bash\n"
+    << "# pinsim " << j.tool << " on Slurm, written by `pinsim " << j.tool << " --slurm`:\n"
+    << "# array task i runs shard i of " << n << " and records its exit in "
+    << "slurm/shard-i.status.\n"
+    << "# Resubmit some by hand: sbatch --array=I,J " << dir << "/job.sh; or rerun the pinsim\n"
+    << "# command with --resume, which resubmits exactly the shards without a result.\n"
+    << "#SBATCH --job-name=pinsim-" << j.tool << "\n"
+    << "#SBATCH --output=" << dir << "/shard-%a.log\n"
+    << "#SBATCH --open-mode=append\n"
+    << "#SBATCH --ntasks=1\n"
+    << "#SBATCH --cpus-per-task=" << r.cpus << "\n"
+    << "#SBATCH --chdir=" << fs::current_path().string() << "\n";
+  if (!r.partition.empty()) s << "#SBATCH --partition=" << r.partition << "\n";
+  if (!r.time.empty()) s << "#SBATCH --time=" << r.time << "\n";
+  if (!r.mem.empty()) s << "#SBATCH --mem=" << r.mem << "\n";
+  for (const auto& a : r.sbatch_args) s << "#SBATCH " << a << "\n";
+  s << "i=${SLURM_ARRAY_TASK_ID:?submit this script as a job array: sbatch --array=0-" << n - 1
+    << " " << dir << "/job.sh}\n"
+    << "n=" << n << "\n"
+    << "status=" << quote(dir) << "/shard-$i.status\n"
+    << "rm -f \"$status\"\n"
+    << "start=$(date +%s.%N)\n"
+    << "echo \"== pinsim shard $i of $n: job ${SLURM_ARRAY_JOB_ID}_$i on $(hostname), "
+       "$(date '+%F %T')\"\n";
+  for (const auto& a : j.command) s << quote(a) << " ";
+  s << "--shard \"$i/$n\"\n"
+    << "code=$?\n"
+    << "echo \"== pinsim shard $i of $n: exit code $code, $(date '+%F %T')\"\n"
+    << "printf '{\"shard\": %d, \"exit\": %d, \"start\": %s, \"end\": %s, \"job\": \"%s_%s\"}\\n' "
+       "\"$i\" \"$code\" \"$start\" \"$(date +%s.%N)\" \"$SLURM_ARRAY_JOB_ID\" \"$i\" "
+       ">\"$status.tmp.$$\" && mv -f \"$status.tmp.$$\" \"$status\"\n"
+    << "exit $code\n";
+  return s.str();
+}
+
+/// The array tasks in the queue that run `script` (whichever submission made them, also one
+/// by hand): task index -> state (PENDING, RUNNING, ...). nullopt if squeue failed (a busy
+/// controller): then nothing is concluded from it.
+std::optional<std::map<int, std::string>> queue_states(const fs::path& script) {
+  const Captured c = capture({"squeue", "--noheader", "--array", "--me", "--format=%i %T %o"});
+  if (c.code != 0) {
+    spdlog::warn("squeue failed (exit {}): {}", c.code, trim(c.output));
+    return std::nullopt;
+  }
+  std::map<int, std::string> q;
+  std::stringstream ss(c.output);
+  std::string line;
+  while (std::getline(ss, line)) {
+    std::stringstream ls(line);
+    std::string id, state, command;
+    ls >> id >> state >> command;
+    const auto us = id.find('_');
+    if (command != script.string() || us == std::string::npos) continue;
+    try {
+      const int task = std::stoi(id.substr(us + 1));
+      if (!q.count(task) || state == "RUNNING") q[task] = state;
+    } catch (const std::exception&) {
+      // "12_[3-5]": a pending range squeue did not expand; not ours to guess
+    }
+  }
+  return q;
+}
+
+/// What Slurm remembers of a job that has left the queue: "TIMEOUT (reason ..., exit 0:15)";
+/// "" when the controller has forgotten it.
+std::string ended_state(const std::string& task) {
+  const Captured c = capture({"scontrol", "--oneliner", "show", "job", task});
+  if (c.code != 0) return "";
+  auto field = [&c](const std::string& key) {
+    const auto p = c.output.find(" " + key + "=");
+    if (p == std::string::npos) return std::string();
+    const auto b = p + key.size() + 2;
+    return c.output.substr(b, c.output.find(' ', b) - b);
+  };
+  std::string s = field("JobState");
+  if (s.empty()) return "";
+  const std::string reason = field("Reason"), code = field("ExitCode");
+  if (!reason.empty() && reason != "None") s += ", reason " + reason;
+  if (!code.empty()) s += ", exit code " + code;
+  return s;
+}
+
+/// The command line of this process with --resume added and --no-wait dropped.
+std::string resume_command() {
+  std::ifstream in("/proc/self/cmdline", std::ios::binary);
+  std::string arg, out;
+  bool has_resume = false;
+  while (std::getline(in, arg, '\0')) {
+    if (arg == "--no-wait") continue;
+    has_resume = has_resume || arg == "--resume";
+    const bool plain = std::all_of(arg.begin(), arg.end(), [](unsigned char c) {
+      return std::isalnum(c) || c == '/' || c == '.' || c == '-' || c == '_' || c == '=' ||
+             c == ':';
+    });
+    if (!out.empty()) out += ' ';
+    out += plain && !arg.empty() ? arg : quote(arg);
+  }
+  if (!has_resume) out += " --resume";
+  return out;
+}
+
+enum class Phase { pending, running, done, failed };
+
+}  // namespace
+
+double now_unix() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+void validate(const Request& r) {
+  if (r.shards < 0 || r.shards > 100000)
+    throw SceneError("--shards " + std::to_string(r.shards) + ": expected 1 to 100000");
+  if (r.cpus < 1 || r.cpus > 4096)
+    throw SceneError("--cpus " + std::to_string(r.cpus) + ": expected 1 to 4096");
+  // Slurm's time forms: M, M:S, H:M:S, D-H, D-H:M, D-H:M:S, or UNLIMITED.
+  static const std::regex time_re(
+      R"(^(\d+(:\d{1,2}){0,2}|\d+-\d{1,2}(:\d{1,2}){0,2}|UNLIMITED|INFINITE)$)");
+  if (!r.time.empty() && !std::regex_match(r.time, time_re))
+    throw SceneError("--time " + r.time +
+                     ": expected Slurm's form: minutes, MM:SS, HH:MM:SS, D-HH, D-HH:MM or "
+                     "D-HH:MM:SS (e.g. 30 or 1:30:00)");
+  static const std::regex mem_re(R"(^\d+[KMGT]?$)");
+  if (!r.mem.empty() && !std::regex_match(r.mem, mem_re))
+    throw SceneError("--mem " + r.mem +
+                     ": expected a size in MB or with a unit K, M, G, T "
+                     "(e.g. 2000 or 2G)");
+  static const std::regex part_re(R"(^[A-Za-z0-9_.,-]+$)");
+  if (!r.partition.empty() && !std::regex_match(r.partition, part_re))
+    throw SceneError("--partition " + r.partition +
+                     ": expected a partition name (letters, digits, _ . -; several with commas)");
+  for (const auto& a : r.sbatch_args)
+    if (a.size() < 2 || a[0] != '-' || a.find('\n') != std::string::npos)
+      throw SceneError("--sbatch-arg " + a +
+                       ": expected one sbatch option such as --account=phys101");
+}
+
+Outcome run(const ArrayJob& job, const Request& r) {
+  validate(r);
+  for (const char* tool : {"sbatch", "squeue", "scontrol"})
+    if (!on_path(tool))
+      throw SceneError(std::string(tool) +
+                       " not found on PATH: --slurm needs Slurm's client commands (Debian: "
+                       "slurm-client; on a cluster, a login node or `module load slurm`)");
+  const std::string out_s = job.out.string();
+  if (out_s.find_first_of(" \t\n'\"") != std::string::npos)
+    throw SceneError("--out " + out_s +
+                     ": with --slurm the output folder's path must not hold "
+                     "spaces or quotes (it goes into #SBATCH lines)");
+  fs::create_directories(slurm_dir(job));
+
+  Outcome o;
+  o.submitted_at = now_unix();
+  const auto prev = read_submission(job);
+  const fs::path script = slurm_dir(job) / "job.sh";
+  const auto queue = queue_states(script);
+  auto queued = [&queue](int i) { return queue && queue->count(i) > 0; };
+
+  Submission sub;
+  std::vector<int> to_submit;
+  std::vector<bool> follow;  // shards this run waits for: (re)submitted now, or still queued
+  if (r.resume) {
+    if (!prev)
+      throw SceneError("--resume: nothing to resume in " + out_s +
+                       " (no slurm/job.json); "
+                       "submit without --resume first");
+    if (r.shards && r.shards != prev->shards)
+      throw SceneError("--resume --shards " + std::to_string(r.shards) + ": " + out_s +
+                       " was submitted with " + std::to_string(prev->shards) +
+                       " shards; drop --shards, or start over without --resume");
+    if (prev->command != job.command)
+      throw SceneError("--resume: " + out_s +
+                       " was submitted for a different command (config, options or "
+                       "program); start over without --resume");
+    sub = *prev;
+    follow.assign(sub.shards, true);
+    for (int i = 0; i < sub.shards; ++i) {
+      if (queued(i)) continue;  // still queued or running: follow it
+      if (result_complete(job, i, sub.shards))
+        follow[i] = false;
+      else
+        to_submit.push_back(i);
+    }
+    if (to_submit.empty())
+      spdlog::info("--resume: no shard to resubmit ({} complete or still queued)", sub.shards);
+    else
+      spdlog::info("--resume: resubmitting shard{} {} of {}", to_submit.size() > 1 ? "s" : "",
+                   ranges(to_submit), sub.shards);
+  } else {
+    if (prev)
+      for (int i = 0; i < prev->shards; ++i)
+        if (queued(i))
+          throw SceneError(out_s + " has shards of job " + prev->job_of[i] +
+                           " still queued or running; follow them with --resume, or "
+                           "`scancel " +
+                           prev->job_of[i] + "` first");
+    sub.shards = r.shards ? r.shards : kDefaultShards;
+    sub.command = job.command;
+    sub.job_of.assign(sub.shards, "");
+    // A fresh start: no result, status or log of an earlier submission may be mistaken for
+    // one of this one.
+    std::error_code ec;
+    const int old_n = prev ? prev->shards : 0;
+    for (int n : {old_n, sub.shards})
+      for (int i = 0; i < n; ++i) {
+        fs::remove(job.result(i, n), ec);
+        fs::remove(sweep::manifest_path(job.result(i, n)), ec);
+      }
+    for (int i = 0; i < std::max(old_n, sub.shards); ++i) {
+      fs::remove(status_file(job, i), ec);
+      fs::remove(log_file(job, i), ec);
+    }
+    for (int i = 0; i < sub.shards; ++i) to_submit.push_back(i);
+    follow.assign(sub.shards, true);
+  }
+  o.shards = sub.shards;
+
+  // Submit one array of the shards to (re)run.
+  sweep::write_atomically(script, job_script(job, r, sub.shards));
+  fs::permissions(script, fs::perms::owner_exec, fs::perm_options::add);
+  if (!to_submit.empty()) {
+    for (int i : to_submit) {
+      std::error_code ec;
+      fs::remove(status_file(job, i), ec);
+    }
+    const Captured c =
+        capture({"sbatch", "--parsable", "--array=" + ranges(to_submit), script.string()});
+    const std::string id = trim(c.output.substr(0, c.output.find(';')));
+    if (c.code != 0 || id.empty() ||
+        !std::all_of(id.begin(), id.end(), [](unsigned char ch) { return std::isdigit(ch); }))
+      throw SceneError("sbatch refused the job array (exit " + std::to_string(c.code) +
+                       "): " + trim(c.output));
+    for (int i : to_submit) sub.job_of[i] = id;
+    o.jobs = id;
+    write_submission(job, sub);
+    spdlog::info("submitted job {}: shard{} {} of {} ({}), logs in {}/shard-I.log", id,
+                 to_submit.size() > 1 ? "s" : "", ranges(to_submit), sub.shards, script.string(),
+                 slurm_dir(job).string());
+  }
+  if (!r.wait) {
+    std::cout << (o.jobs.empty() ? "none" : o.jobs) << "\n";
+    spdlog::info("not waiting; collect the results later with:\n  {}", resume_command());
+    return o;
+  }
+
+  // Follow every shard until it is done or has failed.
+  std::vector<Phase> phase(sub.shards, Phase::pending);
+  std::vector<std::string> why(sub.shards);
+  std::vector<int> absent(sub.shards, 0), exit_code(sub.shards, 0);
+  std::vector<double> gone_since(sub.shards, -1.0);
+  std::string jobs_label;
+  for (int i = 0; i < sub.shards; ++i) {
+    if (!follow[i]) {
+      phase[i] = Phase::done;  // complete before this run
+      if (const auto st = read_status(job, i)) exit_code[i] = st->exit;
+    } else if (jobs_label.find(sub.job_of[i]) == std::string::npos) {
+      jobs_label += (jobs_label.empty() ? "" : ",") + sub.job_of[i];
+    }
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  auto elapsed = [&t0] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  };
+  double next_squeue = 0.0;
+  std::string last_line;
+  g_interrupted = 0;
+  const auto old_handler = std::signal(SIGINT, on_sigint);
+  for (;;) {
+    // The shards' own files first: a status file is written when a shard's command ends.
+    for (int i = 0; i < sub.shards; ++i) {
+      if (phase[i] == Phase::done || phase[i] == Phase::failed) continue;
+      if (const auto st = read_status(job, i)) {
+        exit_code[i] = st->exit;
+        if ((st->exit == 0 || st->exit == 1) && result_complete(job, i, sub.shards)) {
+          phase[i] = Phase::done;
+        } else {
+          phase[i] = Phase::failed;
+          why[i] = st->exit == 2 ? "exit code 2 (bad input: nothing ran)"
+                                 : "exit code " + std::to_string(st->exit);
+          if (st->exit == 0 || st->exit == 1) why[i] += ", but its result is incomplete";
+        }
+      }
+    }
+    const bool all_ended = std::all_of(
+        phase.begin(), phase.end(), [](Phase p) { return p == Phase::done || p == Phase::failed; });
+    // Then the queue, less often the longer the wait (1 s at first, at most every 10 s).
+    if (!all_ended && elapsed() >= next_squeue) {
+      next_squeue = elapsed() + std::min(10.0, 1.0 + elapsed() / 30.0);
+      if (const auto q = queue_states(script)) {
+        for (int i = 0; i < sub.shards; ++i) {
+          if (phase[i] == Phase::done || phase[i] == Phase::failed) continue;
+          const std::string task = sub.job_of[i] + "_" + std::to_string(i);
+          const auto it = q->find(i);
+          if (it != q->end()) {
+            absent[i] = 0;
+            gone_since[i] = -1.0;
+            phase[i] = it->second == "RUNNING" || it->second == "COMPLETING" ? Phase::running
+                                                                             : Phase::pending;
+            continue;
+          }
+          // Left the queue without a status file: ask Slurm how it ended. A shard that
+          // completed but whose status file is not visible yet (a slow shared file system)
+          // gets two minutes; one Slurm has forgotten counts as failed on the second look.
+          const std::string ended = ended_state(task);
+          ++absent[i];
+          if (gone_since[i] < 0) gone_since[i] = elapsed();
+          if (ended.rfind("COMPLETED", 0) == 0 && elapsed() - gone_since[i] < 120.0) continue;
+          if (ended.empty() && absent[i] < 2) continue;
+          phase[i] = Phase::failed;
+          why[i] = ended.empty() ? "left the queue without a result, and Slurm has no record of "
+                                   "it (cancelled before it started?)"
+                                 : ended;
+        }
+      }
+    }
+    int n_done = 0, n_run = 0, n_pend = 0, n_fail = 0;
+    for (Phase p : phase) {
+      n_done += p == Phase::done;
+      n_run += p == Phase::running;
+      n_pend += p == Phase::pending;
+      n_fail += p == Phase::failed;
+    }
+    const std::string line = fmt::format("{}/{} done, {} running, {} pending, {} failed", n_done,
+                                         sub.shards, n_run, n_pend, n_fail);
+    if (line != last_line) {
+      spdlog::info("slurm job {}: {} ({:.1f} s)", jobs_label.empty() ? "-" : jobs_label, line,
+                   elapsed());
+      last_line = line;
+    }
+    if (n_done + n_fail == sub.shards) break;
+    if (g_interrupted) {
+      std::signal(SIGINT, old_handler);
+      spdlog::warn("stopped following; the shards keep running. Collect them with:\n  {}",
+                   resume_command());
+      o.state = Outcome::State::interrupted;
+      return o;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));
+  }
+  std::signal(SIGINT, old_handler);
+
+  // Run time of the shards of this submission: the union of their [start, end].
+  std::vector<std::pair<double, double>> spans;
+  for (int i = 0; i < sub.shards; ++i)
+    if (const auto st = read_status(job, i))
+      if (st->end >= o.submitted_at - 1.0 && st->end >= st->start)
+        spans.emplace_back(std::max(st->start, o.submitted_at), st->end);
+  std::sort(spans.begin(), spans.end());
+  double busy = 0, cur_b = 0, cur_e = -1;
+  for (const auto& [b, e] : spans) {
+    if (b > cur_e) {
+      busy += std::max(0.0, cur_e - cur_b);
+      cur_b = b;
+      cur_e = e;
+    } else {
+      cur_e = std::max(cur_e, e);
+    }
+  }
+  busy += std::max(0.0, cur_e - cur_b);
+  o.busy_seconds = busy;
+
+  std::vector<int> failed;
+  for (int i = 0; i < sub.shards; ++i)
+    if (phase[i] == Phase::failed) failed.push_back(i);
+  if (!failed.empty()) {
+    for (int i : failed) {
+      const fs::path log = log_file(job, i);
+      const std::string tail = last_lines(log, 12);
+      spdlog::error("shard {} of {} (job {}_{}) failed: {}; log {}{}", i, sub.shards, sub.job_of[i],
+                    i, why[i], log.string(),
+                    tail.empty() ? " (none: it never started)" : ", last lines:\n" + tail);
+    }
+    spdlog::error("{} of {} shards failed (shard{} {}); resubmit only those with:\n  {}",
+                  failed.size(), sub.shards, failed.size() > 1 ? "s" : "", ranges(failed),
+                  resume_command());
+    o.state = Outcome::State::failed;
+    return o;
+  }
+  o.state = Outcome::State::complete;
+  for (int i = 0; i < sub.shards; ++i) {
+    o.results.push_back(job.result(i, sub.shards));
+    o.worst_exit = std::max(o.worst_exit, exit_code[i]);
+  }
+  return o;
+}
+
+}  // namespace pinsim::slurm
