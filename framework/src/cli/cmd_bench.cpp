@@ -1,10 +1,14 @@
-// pinsim bench CONFIG [--out DIR] [--shard i/N] [--repeats N]
+// pinsim bench CONFIG [--out DIR] [--shard i/N] [--repeats N] [--slurm [--shards N] ...]
 #include <spdlog/spdlog.h>
 
+#include <filesystem>
 #include <memory>
 
+#include "cli_slurm.hpp"
 #include "commands.hpp"
 #include "tools/bench.hpp"
+
+namespace fs = std::filesystem;
 
 namespace pinsim::cli {
 namespace {
@@ -12,7 +16,26 @@ namespace {
 struct BenchArgs {
   std::string config, out = "out/bench", shard = "0/1";
   int repeats = -1;
+  SlurmArgs slurm;
 };
+
+int bench_on_slurm(const BenchArgs& a) {
+  bench::Options check;  // a bad config fails here, not in every shard
+  check.config = a.config;
+  check.check_only = true;
+  bench::run(check);
+  slurm::ArrayJob job;
+  job.tool = "bench";
+  job.out = fs::absolute(a.out).lexically_normal();
+  job.command = {self_exe().string(), "bench", fs::absolute(a.config).lexically_normal().string(),
+                 "--out", job.out.string()};
+  if (a.repeats >= 0)
+    job.command.insert(job.command.end(), {"--repeats", std::to_string(a.repeats)});
+  job.result = [out = job.out](int i, int n) {
+    return out / ("bench" + sweep::Shard{i, n}.suffix() + ".csv");
+  };
+  return run_on_slurm(job, a.slurm);
+}
 
 }  // namespace
 
@@ -24,7 +47,10 @@ void add_bench_command(CLI::App& app) {
   c->add_option("--out,-o", a->out, "Output folder for bench.csv and figures (default out/bench)");
   c->add_option("--shard", a->shard, "Run only every N-th point: i/N, 0 <= i < N (default 0/1)");
   c->add_option("--repeats", a->repeats, "Timed repeats per point (default: the config's, or 3)");
-  c->callback([a] {
+  add_slurm_options(c, a->slurm);
+  c->callback([a, c] {
+    check_slurm_options(c, a->slurm, c->count("--shard") > 0);
+    if (a->slurm.slurm) throw CLI::RuntimeError(bench_on_slurm(*a));
     bench::Options o;
     o.config = a->config;
     o.out = a->out;

@@ -1,5 +1,6 @@
 // pinsim grade --rubric R --submission PATH [--out DIR] [--batch [--jobs J] [--shard i/N]]
-// and the hidden child `pinsim grade-worker` that runs one test.
+// [--batch --slurm [--shards N] ...] and the hidden child `pinsim grade-worker` that runs
+// one test.
 #include <fcntl.h>
 #include <spdlog/spdlog.h>
 #include <sys/wait.h>
@@ -11,11 +12,13 @@
 #include <map>
 #include <memory>
 
+#include "cli_slurm.hpp"
 #include "commands.hpp"
 #include "core/scene_error.hpp"
 #include "grading/grader.hpp"
 #include "grading/results.hpp"
 #include "grading/sandbox.hpp"
+#include "tools/sweep.hpp"
 
 namespace fs = std::filesystem;
 
@@ -26,9 +29,8 @@ struct GradeArgs {
   std::string rubric, submission, out = "grade-out", sdk_prefix, shard = "0/1";
   bool batch = false, unsafe = false;
   int jobs = 0;
+  SlurmArgs slurm;
 };
-
-fs::path self_exe() { return fs::read_symlink("/proc/self/exe"); }
 
 std::pair<std::size_t, std::size_t> parse_shard(const std::string& s) {
   const auto slash = s.find('/');
@@ -118,22 +120,66 @@ int grade_batch(const GradeArgs& a) {
     const pid_t done = ::wait(&status);
     if (done > 0) running.erase(done);
   }
-  fs::create_directories(a.out);
+  // The CSV is written atomically; a shard's gets a manifest (what the whole batch is) so
+  // that `pinsim merge` can refuse shards of different batches or a missing one.
   const fs::path csv = fs::path(a.out) / ("batch-" + std::to_string(shard) + "-of-" +
                                           std::to_string(shards) + ".csv");
-  std::ofstream out(csv);
-  out << "submission,score,max_score\n";
+  sweep::Table t;
+  t.header = {"submission", "score", "max_score"};
   for (const auto& s : mine) {
     std::ifstream in(fs::path(a.out) / s.filename() / "results.json");
     const auto r = nlohmann::json::parse(in, nullptr, false);
     if (r.is_discarded())
-      out << s.filename().string() << ",,\n";  // the grader itself failed on it: visible, not zero
+      t.rows.push_back({s.filename().string(), "", ""});  // the grader failed: visible, not 0
     else
-      out << s.filename().string() << "," << r["score"] << "," << r["max_score"] << "\n";
+      t.rows.push_back({s.filename().string(), r["score"].dump(), r["max_score"].dump()});
+  }
+  if (shards == 1) {
+    t.write(csv);
+  } else {
+    std::ifstream rubric(a.rubric);
+    std::string inputs = std::string(std::istreambuf_iterator<char>(rubric), {}) + "\n" +
+                         a.sdk_prefix + (a.unsafe ? "\nunsafe" : "");
+    for (const auto& s : subs) inputs += "\n" + s.filename().string();
+    sweep::Manifest m;
+    m.tool = "grade";
+    m.sweep = sweep::fingerprint(inputs);
+    m.shard = sweep::Shard{static_cast<int>(shard), static_cast<int>(shards)};
+    m.points = subs.size();
+    sweep::write_shard(t, csv, m);
   }
   std::cout << "graded " << mine.size() << " submission(s) of " << subs.size() << " (shard "
             << shard << "/" << shards << "); " << csv.string() << "\n";
   return 0;
+}
+
+// Every shard of the batch as one Slurm array task; then the shards' CSVs merged into the
+// batch-0-of-1.csv an unsharded batch writes.
+int grade_batch_on_slurm(const GradeArgs& a) {
+  load_rubric(a.rubric);  // fail early on a bad rubric
+  if (!fs::is_directory(a.submission))
+    throw SceneError("--submission " + a.submission + ": with --batch, expected a folder");
+  slurm::ArrayJob job;
+  job.tool = "grade";
+  job.out = fs::absolute(a.out).lexically_normal();
+  job.command = {self_exe().string(),
+                 "grade",
+                 "--batch",
+                 "--rubric",
+                 fs::absolute(a.rubric).lexically_normal().string(),
+                 "--submission",
+                 fs::absolute(a.submission).lexically_normal().string(),
+                 "--out",
+                 job.out.string(),
+                 "--jobs",
+                 std::to_string(a.jobs > 0 ? a.jobs : a.slurm.request.cpus)};
+  if (!a.sdk_prefix.empty())
+    job.command.insert(job.command.end(), {"--sdk-prefix", fs::absolute(a.sdk_prefix).string()});
+  if (a.unsafe) job.command.push_back("--unsafe-no-sandbox");
+  job.result = [out = job.out](int i, int n) {
+    return out / ("batch-" + std::to_string(i) + "-of-" + std::to_string(n) + ".csv");
+  };
+  return run_on_slurm(job, a.slurm);
 }
 
 }  // namespace
@@ -154,10 +200,14 @@ void add_grade_command(CLI::App& app) {
               "Grade even where no sandbox can be made (submissions then see the machine)");
   c->add_option("--jobs", a->jobs, "Submissions graded at once (default: cores)");
   c->add_option("--shard", a->shard, "With --batch: grade every N-th submission from i (i/N)");
-  c->callback([a] {
+  add_slurm_options(c, a->slurm);
+  c->callback([a, c] {
+    check_slurm_options(c, a->slurm, c->count("--shard") > 0);
+    if (a->slurm.slurm && !a->batch) throw SceneError("--slurm grades with --batch only");
     grading::set_unsafe_no_sandbox(a->unsafe);
     if (a->unsafe)
       spdlog::warn("grading WITHOUT a sandbox: submissions can read and write what this user can");
+    if (a->slurm.slurm) throw CLI::RuntimeError(grade_batch_on_slurm(*a));
     throw CLI::RuntimeError(a->batch ? grade_batch(*a) : grade_one(*a));
   });
 

@@ -1,14 +1,37 @@
-// pinsim stress CONFIG [--out DIR] [--shard i/N]
+// pinsim stress CONFIG [--out DIR] [--shard i/N] [--slurm [--shards N] ...]
+#include <filesystem>
 #include <memory>
 
+#include "cli_slurm.hpp"
 #include "commands.hpp"
 #include "tools/stress.hpp"
 
+namespace fs = std::filesystem;
+
 namespace pinsim::cli {
 namespace {
+
 struct StressArgs {
   std::string config, out = "out/stress", shard = "0/1";
+  SlurmArgs slurm;
 };
+
+int stress_on_slurm(const StressArgs& a) {
+  stress::Options check;  // a bad config fails here, not in every shard
+  check.config = a.config;
+  check.check_only = true;
+  stress::run(check);
+  slurm::ArrayJob job;
+  job.tool = "stress";
+  job.out = fs::absolute(a.out).lexically_normal();
+  job.command = {self_exe().string(), "stress", fs::absolute(a.config).lexically_normal().string(),
+                 "--out", job.out.string()};
+  job.result = [out = job.out](int i, int n) {
+    return out / ("stress" + sweep::Shard{i, n}.suffix() + ".csv");
+  };
+  return run_on_slurm(job, a.slurm);
+}
+
 }  // namespace
 
 void add_stress_command(CLI::App& app) {
@@ -18,7 +41,10 @@ void add_stress_command(CLI::App& app) {
   c->add_option("config", a->config, "Stress config (configs/stress/*.json)")->required();
   c->add_option("--out,-o", a->out, "Output folder for stress.csv and heat maps");
   c->add_option("--shard", a->shard, "Run only every N-th point: i/N, 0 <= i < N (default 0/1)");
-  c->callback([a] {
+  add_slurm_options(c, a->slurm);
+  c->callback([a, c] {
+    check_slurm_options(c, a->slurm, c->count("--shard") > 0);
+    if (a->slurm.slurm) throw CLI::RuntimeError(stress_on_slurm(*a));
     stress::Options o;
     o.config = a->config;
     o.out = a->out;
