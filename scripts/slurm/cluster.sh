@@ -14,10 +14,12 @@
 set -euo pipefail
 
 die() { echo "cluster: $*" >&2; exit 1; }
+# the daemons live in sbin, which a non-login root shell may not have on its PATH
+export PATH="$PATH:/usr/sbin:/sbin"
 
 cmd=${1:-}
 dir=${2:-}
-[ -n "$cmd" ] && [ -n "$dir" ] || { echo "usage: $0 start|stop DIR" >&2; exit 2; }
+if [ -z "$cmd" ] || [ -z "$dir" ]; then echo "usage: $0 start|stop DIR" >&2; exit 2; fi
 dir=$(realpath -m "$dir")
 conf=$dir/slurm/slurm.conf
 
@@ -41,8 +43,8 @@ start_daemon() {  # name, then the command; records the PID in DIR/pids/NAME
   echo $! >"$dir/pids/$name"
 }
 
-wait_until() {  # seconds, description, command...
-  local secs=$1 what=$2; shift 2
+wait_until() {  # seconds, command...: 0 once the command succeeds, 1 if it never did
+  local secs=$1; shift
   local end=$((SECONDS + secs))
   until "$@" >/dev/null 2>&1; do
     [ $SECONDS -lt $end ] || return 1
@@ -72,7 +74,7 @@ start() {
   start_daemon munged munged --foreground --force --socket="$sock" \
     --key-file="$dir/munge/munge.key" --pid-file="$dir/munge/munged.pid" \
     --seed-file="$dir/munge/munged.seed" --log-file="$dir/logs/munged.log"
-  if ! wait_until 10 "munged" test -S "$sock" || ! alive munged; then
+  if ! wait_until 10 test -S "$sock" || ! alive munged; then
     show_log "$dir/logs/munged.log"; show_log "$dir/logs/munged.out"
     die "munged did not start (see above)"
   fi
@@ -130,7 +132,7 @@ CONF
   export SLURM_CONF=$conf
   start_daemon slurmctld slurmctld -D -i -f "$conf"
   start_daemon slurmd slurmd -D -f "$conf"
-  if ! wait_until 30 "the node" bash -c "sinfo -h -n $host -o %t | grep -qx idle"; then
+  if ! wait_until 30 bash -c "sinfo -h -n $host -o %t | grep -qx idle"; then
     alive slurmctld || echo "cluster: slurmctld is not running" >&2
     alive slurmd || echo "cluster: slurmd is not running" >&2
     show_log "$dir/logs/slurmctld.log"; show_log "$dir/logs/slurmctld.out"
@@ -144,10 +146,11 @@ CONF
 
 # PIDs of processes whose environment carries this cluster's marker.
 marked_pids() {
-  local p
-  for p in /proc/[0-9]*; do
-    [ "${p#/proc/}" != "$$" ] || continue
-    { tr '\0' '\n' <"$p/environ"; } 2>/dev/null | grep -qxF "$marker" && echo "${p#/proc/}"
+  local f
+  # -z: environ entries are NUL separated; -x: the whole entry
+  grep -lzxF "$marker" /proc/[0-9]*/environ 2>/dev/null | while read -r f; do
+    f=${f#/proc/}
+    [ "${f%/environ}" = "$$" ] || echo "${f%/environ}"
   done
   true
 }
@@ -156,15 +159,18 @@ stop() {
   export SLURM_CONF=$conf
   if alive slurmctld; then
     scancel --quiet --full --user="$(id -un)" 2>/dev/null || true
-    wait_until 10 "jobs to end" bash -c '[ -z "$(squeue -h -o %i 2>/dev/null)" ]' || true
+    # shellcheck disable=SC2016  # expanded by the inner shell, on every try
+    wait_until 10 bash -c '[ -z "$(squeue -h -o %i 2>/dev/null)" ]' || true
   fi
   local name pid
   for name in slurmd slurmctld munged; do
     if alive "$name"; then kill -TERM "$(cat "$dir/pids/$name")" 2>/dev/null || true; fi
   done
   for name in slurmd slurmctld munged; do
-    alive "$name" && ! wait_until 10 "$name to stop" bash -c "! kill -0 $(cat "$dir/pids/$name")" &&
-      kill -KILL "$(cat "$dir/pids/$name")" 2>/dev/null || true
+    if alive "$name"; then
+      pid=$(cat "$dir/pids/$name")
+      wait_until 10 bash -c "! kill -0 $pid 2>/dev/null" || kill -KILL "$pid" 2>/dev/null || true
+    fi
     rm -f "$dir/pids/$name"
   done
   for pid in $(marked_pids); do kill -KILL "$pid" 2>/dev/null || true; done
