@@ -359,6 +359,11 @@ Outcome run(const ArrayJob& job, const Request& r) {
   const fs::path script = slurm_dir(job) / "job.sh";
   const auto queue = queue_states(script);
   auto queued = [&queue](int i) { return queue && queue->count(i) > 0; };
+  if (prev && !queue)
+    throw SceneError(
+        "squeue failed, so it is unknown whether shards of the previous "
+        "submission in " +
+        out_s + " are still queued; try again");
 
   Submission sub;
   std::vector<int> to_submit;
