@@ -207,8 +207,8 @@ std::string job_script(const ArrayJob& j, const Request& r, int n) {
     << "# pinsim " << j.tool << " on Slurm, written by `pinsim " << j.tool << " --slurm`:\n"
     << "# array task i runs shard i of " << n << " and records its exit in "
     << "slurm/shard-i.status.\n"
-    << "# Resubmit some by hand: sbatch --array=I,J " << dir << "/job.sh; or rerun the pinsim\n"
-    << "# command with --resume, which resubmits exactly the shards without a result.\n"
+    << "# Resubmit some shards by hand:  sbatch --array=I,J " << dir << "/job.sh\n"
+    << "# or rerun the pinsim command with --resume: it resubmits the shards without a result.\n"
     << "#SBATCH --job-name=pinsim-" << j.tool << "\n"
     << "#SBATCH --output=" << dir << "/shard-%a.log\n"
     << "#SBATCH --open-mode=append\n"
@@ -532,8 +532,10 @@ Outcome run(const ArrayJob& job, const Request& r) {
     const std::string line = fmt::format("{}/{} done, {} running, {} pending, {} failed", n_done,
                                          sub.shards, n_run, n_pend, n_fail);
     if (line != last_line) {
-      spdlog::info("slurm job {}: {} ({:.1f} s)", jobs_label.empty() ? "-" : jobs_label, line,
-                   elapsed());
+      if (jobs_label.empty())
+        spdlog::info("slurm: {} ({:.1f} s)", line, elapsed());
+      else
+        spdlog::info("slurm job {}: {} ({:.1f} s)", jobs_label, line, elapsed());
       last_line = line;
     }
     if (n_done + n_fail == sub.shards) break;
