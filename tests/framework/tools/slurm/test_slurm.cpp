@@ -4,6 +4,7 @@
 // munge, started by scripts/slurm/cluster.sh and stopped at the end, also on failure): a
 // 3-shard bench sweep and a 2-shard batch grade through `--slurm` give the unsharded runs'
 // results, a cancelled shard is reported by index and `--resume` resubmits only that one.
+#include <algorithm>
 #include <catch2/catch.hpp>
 #include <chrono>
 #include <cstdlib>
@@ -244,12 +245,13 @@ TEST_CASE("slurm: 3-shard bench and 2-shard batch grade on a one-node cluster eq
     CHECK(!overhead.empty());
     std::cout << "slurm test, bench 3 shards: " << overhead << "\n";
 
-    // Shards one at a time (--cpus 2 on a 2-CPU node), each running about a second
-    // (--repeats 6000); shard 0 is cancelled while it runs, so it never writes a result. The
-    // run reports it by index, with Slurm's verdict and its log, and fails.
+    // Shards one at a time (each asks for all the node's CPUs), each running about a second
+    // here (--repeats 6000); shard 0 is cancelled while it runs, so it never writes a result.
+    // The run reports it by index, with Slurm's verdict and its log, and fails.
     const fs::path fr = dir / "fr";
+    const std::string cpus = std::to_string(std::max(1u, std::thread::hardware_concurrency()));
     const std::string cmd = pinsim + " bench " + cfg + " --out " + fr.string() +
-                            " --slurm --shards 3 --cpus 2 --repeats 6000 --time 2";
+                            " --slurm --shards 3 --cpus " + cpus + " --repeats 6000 --time 2";
     shell("(" + cmd + " > " + (dir / "fr.log").string() + " 2>&1; echo $? > " +
           (dir / "fr.code").string() + ") > /dev/null 2>&1 &");
     REQUIRE(wait_for(fr / "slurm" / "job.json", 30));
