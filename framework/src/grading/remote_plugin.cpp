@@ -68,9 +68,17 @@ void* r_create(const pinsim_create_args* a, pinsim_error* err) {
     out.str(a->params_json ? a->params_json : "{}");
     out.str(a->scene_json ? a->scene_json : "");
     out.state(*a->initial);
+    // Index words: n x arity, or for whole-body elements (PINSIM_ARITY_VARIABLE) each
+    // element's length followed by its indices.
+    uint64_t words = a->n_elements * a->arity;
+    if (a->arity == PINSIM_ARITY_VARIABLE) {
+      words = 0;
+      for (uint64_t e = 0; e < a->n_elements; ++e) words += 1 + a->elements[words];
+    }
     out.u32(a->arity);
     out.u64(a->n_elements);
-    out.raw(a->elements, a->n_elements * a->arity * sizeof(uint32_t));
+    out.u64(words);
+    out.raw(a->elements, words * sizeof(uint32_t));
     out.str(a->context ? a->context : "");
     int64_t obstacles = 0;
     if (a->scene_json != nullptr) {
@@ -474,7 +482,7 @@ std::shared_ptr<const LoadedPlugin> RemoteWorker::open(const std::string& name, 
     const uint32_t n_params = in.u32();
     if (n_params > 256) throw WireError("more than 256 parameters");
     if (p.kind != kind || std::string(p.name) != name) throw WireError("wrong plugin described");
-    if (p.kind == PINSIM_KIND_FORCE && (p.arity < 1 || p.arity > 1u << 20))
+    if (p.kind == PINSIM_KIND_FORCE && p.arity > 1u << 20)
       throw WireError("force arity " + std::to_string(p.arity) + " out of range");
     t->params.resize(n_params);
     for (auto& q : t->params) {

@@ -62,11 +62,18 @@ Verdict reference_test(const std::shared_ptr<const LoadedPlugin>& sub, const Rub
   if (sub->table->arity != ref->table->arity)
     return {false, "your plugin acts on elements of " + std::to_string(sub->table->arity) +
                        " particles, the reference on " + std::to_string(ref->table->arity)};
-  const uint32_t arity = ref->table->arity == 0 ? 1 : ref->table->arity;
+  const uint32_t arity = ref->table->arity;
+  const bool whole_body = arity == PINSIM_ARITY_VARIABLE;
   const int n = 7;
   std::vector<uint32_t> elements;
-  for (int i = 0; i + static_cast<int>(arity) <= n; ++i)
-    for (uint32_t k = 0; k < arity; ++k) elements.push_back(static_cast<uint32_t>(i) + k);
+  if (whole_body) {
+    // One closed ring of all particles, counter-clockwise (length first, then indices).
+    elements.push_back(static_cast<uint32_t>(n));
+    for (int i = 0; i < n; ++i) elements.push_back(static_cast<uint32_t>(i));
+  } else {
+    for (int i = 0; i + static_cast<int>(arity) <= n; ++i)
+      for (uint32_t k = 0; k < arity; ++k) elements.push_back(static_cast<uint32_t>(i) + k);
+  }
   std::mt19937_64 rng(t.spec.value("seed", 7ull));
   std::uniform_real_distribution<double> u(-1.0, 1.0);
   auto random_state = [&] {
@@ -76,7 +83,12 @@ Verdict reference_test(const std::shared_ptr<const LoadedPlugin>& sub, const Rub
     s.inv_mass = Eigen::VectorXd::Constant(n, 1.0);
     s.radius = Eigen::VectorXd::Constant(n, 0.05);
     for (int i = 0; i < n; ++i) {
-      s.x.col(i) << 0.3 * i + 0.1 * u(rng), 0.2 * u(rng);
+      if (whole_body) {  // around a circle, so the ring encloses an area
+        const double a = 2.0 * M_PI * i / n;
+        s.x.col(i) << std::cos(a) + 0.1 * u(rng), std::sin(a) + 0.1 * u(rng);
+      } else {
+        s.x.col(i) << 0.3 * i + 0.1 * u(rng), 0.2 * u(rng);
+      }
       s.v.col(i) << u(rng), u(rng);
     }
     return s;
@@ -194,7 +206,6 @@ Verdict backend_test(const std::shared_ptr<const LoadedPlugin>& plugin, const Ru
   const bool has_distance = ref.backend().has_distance();
   for (uint64_t n = 0; n < ref_scene.steps(); ++n) {
     ref.step();
-    sub.events().clear();
     try {
       sub.step();
     } catch (const NumericError& e) {

@@ -23,7 +23,7 @@ constexpr int kChannelFd = 3;                  // the worker's end of the channe
 /// Requests (grader -> worker).
 enum class Op : uint32_t {
   Open = 1,   ///< str name, u32 kind -> plugin description
-  Create,     ///< str params, str scene, state, u32 arity, u64 n, u32[n*arity], str ctx -> u64 id
+  Create,     ///< str params, str scene, state, u32 arity, u64 n, u64 w, u32[w], str ctx -> u64 id
   Destroy,    ///< u64 id -> ()
   AddForce,   ///< u64 id, state, f64[2n] f -> f64[2n] f
   Energy,     ///< u64 id, state -> f64

@@ -143,9 +143,9 @@ class Worker {
         WireState s;
         s.read(in, kMaxParticles);
         const uint32_t arity = in.u32();
-        const uint64_t n_el = in.u64();
-        in.need(n_el * arity * sizeof(uint32_t));
-        std::vector<uint32_t> el(n_el * arity);
+        const uint64_t n_el = in.u64(), words = in.u64();
+        in.need(words * sizeof(uint32_t));
+        std::vector<uint32_t> el(words);
         in.raw(el.data(), el.size() * sizeof(uint32_t));
         const std::string context = in.str();
         const pinsim_state_view v = s.view();

@@ -90,6 +90,15 @@ TEST_CASE("grader: the force rubric tests every option of the shipped plugins") 
   CHECK(r["score"].get<double>() == 59);
 }
 
+TEST_CASE("grader: a whole-body force (variable-length elements) is graded in the sandbox") {
+  const fs::path plugins = PINSIM_BUILD_PLUGIN_DIR;
+  const fs::path sub = library_folder("area", {plugins / "libpinsim_plugin_area_pressure.so"});
+  const json r = grade(src / "rubric_area.json", sub, "area");
+  CAPTURE(r["output"].get<std::string>());
+  CHECK(r["max_score"].get<double>() == 4);
+  CHECK(r["score"].get<double>() == 4);
+}
+
 TEST_CASE("grader: each broken force submission gets its expected score and message") {
   const fs::path rubric = src / "rubric_springs.json";
   struct Case {
