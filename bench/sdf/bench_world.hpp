@@ -36,7 +36,7 @@ template <class B>
 nlohmann::json params_for(const nlohmann::json& scene_params,
                           const nlohmann::json& over = nlohmann::json::object()) {
   nlohmann::json p = nlohmann::json::object();
-  for (const auto& d : B::info().params) p[d.name] = d.def[0];
+  for (const auto& d : B::info().params) p[d.name] = d.default_value[0];
   if (scene_params.is_object())
     for (const auto& [k, v] : scene_params.items()) p[k] = v;
   for (const auto& [k, v] : over.items()) p[k] = v;

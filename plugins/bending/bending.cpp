@@ -32,14 +32,7 @@ PluginInfo Bending::info() {
 }
 
 Bending::Bending(const CreateContext& ctx) : k_(ctx.params.real("k")) {
-  if (ctx.elements.arity != 3)
-    throw Error(ctx.context + ": bending elements are triples, got arity " +
-                std::to_string(ctx.elements.arity));
-  idx_.assign(ctx.elements.data, ctx.elements.data + 3 * ctx.elements.count);
-  for (uint32_t i : idx_)
-    if (i >= ctx.initial.n)
-      throw Error(ctx.context + ": particle index " + std::to_string(i) + " out of range (" +
-                  std::to_string(ctx.initial.n) + " particles)");
+  idx_ = element_indices(ctx, 3);
   if (ctx.params.boolean("length_scaled")) {
     // Discrete rod bending stiffness ~ EI / l (seed, "Length-dependent bending stiffness",
     // Kass): each triple's k divided by its mean initial edge length; 0 if that is 0.

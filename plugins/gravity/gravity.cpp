@@ -42,11 +42,7 @@ Gravity::Gravity(const CreateContext& ctx)
       alpha_(ctx.params.real("alpha")) {
   const double eps = ctx.params.real("softening");
   eps2_ = eps * eps;
-  particles_.assign(ctx.elements.data, ctx.elements.data + ctx.elements.count);
-  for (uint32_t p : particles_)
-    if (p >= ctx.initial.n)
-      throw Error(ctx.context + ": particle index " + std::to_string(p) + " out of range (" +
-                  std::to_string(ctx.initial.n) + " particles)");
+  particles_ = element_indices(ctx, 1);
 }
 
 void Gravity::add_force(const StateView& s, ForceOut& f) const {

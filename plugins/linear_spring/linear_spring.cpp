@@ -31,14 +31,7 @@ PluginInfo LinearSpring::info() {
 }
 
 LinearSpring::LinearSpring(const CreateContext& ctx) : k_(ctx.params.real("k")) {
-  if (ctx.elements.arity != 2)
-    throw Error(ctx.context + ": linear_spring elements are pairs, got arity " +
-                std::to_string(ctx.elements.arity));
-  idx_.assign(ctx.elements.data, ctx.elements.data + 2 * ctx.elements.count);
-  for (uint32_t i : idx_)
-    if (i >= ctx.initial.n)
-      throw Error(ctx.context + ": particle index " + std::to_string(i) + " out of range (" +
-                  std::to_string(ctx.initial.n) + " particles)");
+  idx_ = element_indices(ctx, 2);
   const double l = ctx.params.real("rest_length");
   rest_.resize(ctx.elements.count);
   for (std::size_t e = 0; e < rest_.size(); ++e)

@@ -55,14 +55,7 @@ class ConstraintSpring {
 
   /// Stores ks, kd and the element list; checks arity and indices against ctx.initial.
   ConstraintSpring(const CreateContext& ctx, double ks, double kd) : ks_(ks), kd_(kd) {
-    if (ctx.elements.arity != Arity)
-      throw Error(ctx.context + ": elements have " + std::to_string(ctx.elements.arity) +
-                  " particles each, this force needs " + std::to_string(Arity));
-    idx_.assign(ctx.elements.data, ctx.elements.data + ctx.elements.count * Arity);
-    for (uint32_t i : idx_)
-      if (i >= ctx.initial.n)
-        throw Error(ctx.context + ": particle index " + std::to_string(i) + " out of range (" +
-                    std::to_string(ctx.initial.n) + " particles)");
+    idx_ = element_indices(ctx, Arity);
   }
 
   /// f += -J^T (ks C + kd J v) for every element.

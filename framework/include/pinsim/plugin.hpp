@@ -25,9 +25,9 @@
 
 #include <Eigen/Core>
 #include <cmath>
+#include <concepts>
 #include <cstdint>
 #include <cstring>
-#include <deque>
 #include <exception>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
@@ -177,26 +177,43 @@ struct CreateContext {
   std::string context;  ///< e.g. "scene.json: forces[2]", for error messages
 };
 
+/// The element list of `ctx` as a flat array of particle indices, `arity` per element,
+/// after checking that the elements have that arity and that every index names a particle
+/// of the initial state; throws Error naming ctx.context otherwise. The one element check
+/// every force plugin starts with.
+inline std::vector<uint32_t> element_indices(const CreateContext& ctx, uint32_t arity) {
+  if (ctx.elements.arity != arity)
+    throw Error(ctx.context + ": elements have " + std::to_string(ctx.elements.arity) +
+                " particles each, this force needs " + std::to_string(arity));
+  std::vector<uint32_t> idx(ctx.elements.data, ctx.elements.data + ctx.elements.count * arity);
+  for (uint32_t i : idx)
+    if (i >= ctx.initial.n)
+      throw Error(ctx.context + ": particle index " + std::to_string(i) + " out of range (" +
+                  std::to_string(ctx.initial.n) + " particles)");
+  return idx;
+}
+
 /// One declared parameter, built fluently: real("k", 100).min(0, true).units("N/m").doc("...")
 struct ParamDecl {
+  // Fields as in the C table (pinsim_param); the fluent setters below fill them.
   std::string name;
   pinsim_param_type type = PINSIM_PARAM_REAL;
   uint32_t flags = 0;
-  double def[2] = {0.0, 0.0};
-  std::string def_string;
-  std::string choices_;
-  double lo = -HUGE_VAL;
-  double hi = HUGE_VAL;
-  std::string units_ = "1";
-  std::string doc_;
+  double default_value[2] = {0.0, 0.0};
+  std::string default_string;
+  std::string choices_text;  ///< "a|b|c", or empty for any string
+  double min_value = -HUGE_VAL;
+  double max_value = HUGE_VAL;
+  std::string units_text = "1";
+  std::string doc_text;
 
   ParamDecl& min(double v, bool exclusive = false) {
-    lo = v;
+    min_value = v;
     if (exclusive) flags |= PINSIM_PARAM_MIN_EXCLUSIVE;
     return *this;
   }
   ParamDecl& max(double v, bool exclusive = false) {
-    hi = v;
+    max_value = v;
     if (exclusive) flags |= PINSIM_PARAM_MAX_EXCLUSIVE;
     return *this;
   }
@@ -205,15 +222,15 @@ struct ParamDecl {
     return *this;
   }
   ParamDecl& units(std::string u) {
-    units_ = std::move(u);
+    units_text = std::move(u);
     return *this;
   }
   ParamDecl& doc(std::string d) {
-    doc_ = std::move(d);
+    doc_text = std::move(d);
     return *this;
   }
   ParamDecl& choices(std::string c) {
-    choices_ = std::move(c);
+    choices_text = std::move(c);
     return *this;
   }
 };
@@ -222,7 +239,7 @@ inline ParamDecl real(std::string name, double def) {
   ParamDecl p;
   p.name = std::move(name);
   p.type = PINSIM_PARAM_REAL;
-  p.def[0] = def;
+  p.default_value[0] = def;
   return p;
 }
 inline ParamDecl integer(std::string name, long def) {
@@ -239,13 +256,13 @@ inline ParamDecl string(std::string name, std::string def) {
   ParamDecl p;
   p.name = std::move(name);
   p.type = PINSIM_PARAM_STRING;
-  p.def_string = std::move(def);
+  p.default_string = std::move(def);
   return p;
 }
 inline ParamDecl vec2(std::string name, double x, double y) {
   ParamDecl p = real(std::move(name), x);
   p.type = PINSIM_PARAM_VEC2;
-  p.def[1] = y;
+  p.default_value[1] = y;
   return p;
 }
 
@@ -353,14 +370,14 @@ const pinsim_plugin* make_table() {
       c.name = p.name.c_str();
       c.type = p.type;
       c.flags = p.flags;
-      c.default_value[0] = p.def[0];
-      c.default_value[1] = p.def[1];
-      c.default_string = p.type == PINSIM_PARAM_STRING ? p.def_string.c_str() : nullptr;
-      c.choices = p.choices_.empty() ? nullptr : p.choices_.c_str();
-      c.min = p.lo;
-      c.max = p.hi;
-      c.units = p.units_.c_str();
-      c.doc = p.doc_.c_str();
+      c.default_value[0] = p.default_value[0];
+      c.default_value[1] = p.default_value[1];
+      c.default_string = p.type == PINSIM_PARAM_STRING ? p.default_string.c_str() : nullptr;
+      c.choices = p.choices_text.empty() ? nullptr : p.choices_text.c_str();
+      c.min = p.min_value;
+      c.max = p.max_value;
+      c.units = p.units_text.c_str();
+      c.doc = p.doc_text.c_str();
       s.params.push_back(c);
     }
     pinsim_plugin& t = s.table;

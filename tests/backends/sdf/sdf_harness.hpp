@@ -17,7 +17,7 @@ namespace pinsim::sdf::test {
 /// Parameters with the declared defaults, then `over` on top (what the host does).
 inline nlohmann::json params(const nlohmann::json& over = nlohmann::json::object()) {
   nlohmann::json p = nlohmann::json::object();
-  for (const auto& d : SdfBackend::info().params) p[d.name] = d.def[0];
+  for (const auto& d : SdfBackend::info().params) p[d.name] = d.default_value[0];
   for (const auto& [k, v] : over.items()) p[k] = v;
   return p;
 }
