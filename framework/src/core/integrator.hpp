@@ -2,6 +2,7 @@
 #pragma once
 
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <pinsim/state.hpp>
 #include <string>
 #include <vector>
@@ -15,6 +16,8 @@ class Integrator {
   virtual ~Integrator() = default;
   /// Advances sim.state() by dt.
   virtual void step(Simulation& sim, double dt) = 0;
+  /// Figures of the integrator's own work for summary.json, or null (the default).
+  virtual nlohmann::json stats() const { return nullptr; }
 };
 
 /// The integrator called `name`; throws std::invalid_argument listing the known ones.

@@ -38,6 +38,13 @@ class ForceInstance {
   bool has_energy() const { return plugin_->table->force.energy != nullptr; }
   double energy(const pinsim_state_view& s) const;
   bool has_jacobians() const { return plugin_->table->force.add_jacobians != nullptr; }
+  /// Declared capabilities (PINSIM_CAP_*), read through these rather than the table.
+  bool declares_energy() const { return has_cap(PINSIM_CAP_ENERGY); }
+  bool provides_dfdx() const { return has_jacobians() && has_cap(PINSIM_CAP_DFDX); }
+  bool provides_dfdv() const { return has_jacobians() && has_cap(PINSIM_CAP_DFDV); }
+  bool dissipative() const { return has_cap(PINSIM_CAP_DISSIPATIVE); }
+  /// May depend on velocity: damping, or no energy declared (then nothing rules it out).
+  bool velocity_dependent() const { return dissipative() || !declares_energy(); }
   void add_jacobians(const pinsim_state_view& s, const pinsim_triplet_sink* dfdx,
                      const pinsim_triplet_sink* dfdv) const;
 
@@ -47,6 +54,7 @@ class ForceInstance {
 
  private:
   [[noreturn]] void fail(const char* what) const;
+  bool has_cap(uint32_t cap) const { return (plugin_->table->capabilities & cap) != 0; }
   std::shared_ptr<const LoadedPlugin> plugin_;
   void* self_ = nullptr;
   std::string context_;

@@ -48,7 +48,6 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
         result.exit_code = 130;
         break;
       }
-      sim.events().clear();
       sim.step();
       contacts += sim.events().size();
       if (rec) {
@@ -67,11 +66,9 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
   } catch (const NumericError& e) {
     status = "error";
     result.exit_code = 1;
-    summary["error"] = {{"kind", "numeric"},
-                        {"message", e.what()},
-                        {"step", e.step},
-                        {"t", e.t},
-                        {"particle", e.particle}};
+    summary["error"] = {
+        {"kind", "numeric"}, {"numeric", e.kind_name()}, {"message", e.what()}, {"step", e.step},
+        {"t", e.t},          {"particle", e.particle}};
     spdlog::error("{}: step {} (t = {}), particle {}: {}", scene.label, e.step, e.t, e.particle,
                   e.what());
   } catch (const std::exception& e) {
@@ -106,6 +103,8 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
                        {"max_relative_drift", sim.max_energy_drift()},
                        {"checked_every_steps", scene.energy_every},
                        {"complete", sim.energy_complete()}};
+  if (const nlohmann::json solver = sim.integrator_stats(); !solver.is_null())
+    summary["solver"] = solver;
   summary["state_hash"] = fmt::format("{:016x}", sim.state().hash());
   if (rec) rec->write_summary(summary);
   result.summary = std::move(summary);

@@ -107,6 +107,8 @@ Simulation::Simulation(const Scene& scene, PluginLoader& loader, const RunOption
 
 Simulation::~Simulation() = default;
 
+nlohmann::json Simulation::integrator_stats() const { return integrator_->stats(); }
+
 void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f) {
   f.setZero(2, s.x.cols());
   const pinsim_state_view view = s.view();
@@ -125,7 +127,8 @@ void Simulation::check_finite_forces(const State& s, const Eigen::Matrix2Xd& f) 
     force->add_force(view, one.data());
     for (Eigen::Index i = 0; i < one.cols(); ++i)
       if (!one.col(i).allFinite())
-        throw NumericError("non-finite force (" + std::to_string(one(0, i)) + ", " +
+        throw NumericError(NumericError::Kind::NonFinite,
+                           "non-finite force (" + std::to_string(one(0, i)) + ", " +
                                std::to_string(one(1, i)) + ") on particle " + std::to_string(i) +
                                " from " + force->context() + " (plugin '" + force->plugin().name() +
                                "')",
@@ -133,7 +136,8 @@ void Simulation::check_finite_forces(const State& s, const Eigen::Matrix2Xd& f) 
   }
   for (Eigen::Index i = 0; i < f.cols(); ++i)
     if (!f.col(i).allFinite())
-      throw NumericError("non-finite total force on particle " + std::to_string(i), step_ + 1, s.t,
+      throw NumericError(NumericError::Kind::NonFinite,
+                         "non-finite total force on particle " + std::to_string(i), step_ + 1, s.t,
                          i);
 }
 
@@ -151,10 +155,8 @@ void Simulation::assemble_jacobians(const State& s, Eigen::SparseMatrix<double>&
   if (fd_warned_.size() != forces_.size()) fd_warned_.assign(forces_.size(), false);
   for (std::size_t k = 0; k < forces_.size(); ++k) {
     const ForceInstance& f = *forces_[k];
-    const uint32_t caps = f.plugin().table->capabilities;
-    const bool has_x = f.has_jacobians() && (caps & PINSIM_CAP_DFDX) != 0;
-    const bool has_v = f.has_jacobians() && (caps & PINSIM_CAP_DFDV) != 0;
-    const bool need_v = (caps & PINSIM_CAP_DISSIPATIVE) != 0 || (caps & PINSIM_CAP_ENERGY) == 0;
+    const bool has_x = f.provides_dfdx(), has_v = f.provides_dfdv();
+    const bool need_v = f.velocity_dependent();
     if (has_x || has_v) f.add_jacobians(view, has_x ? &sx : nullptr, has_v ? &sv : nullptr);
     if (!has_x || (!has_v && need_v)) {
       if (!fd_warned_[k]) {
@@ -179,7 +181,8 @@ void Simulation::check_finite_state() const {
   const auto& s = state_;
   for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
     if (!s.x.col(i).allFinite() || !s.v.col(i).allFinite())
-      throw NumericError("non-finite state of particle " + std::to_string(i) + ": x = (" +
+      throw NumericError(NumericError::Kind::NonFinite,
+                         "non-finite state of particle " + std::to_string(i) + ": x = (" +
                              std::to_string(s.x(0, i)) + ", " + std::to_string(s.x(1, i)) +
                              "), v = (" + std::to_string(s.v(0, i)) + ", " +
                              std::to_string(s.v(1, i)) + ") after backend '" +
@@ -226,6 +229,7 @@ void Simulation::check_energy() {
       }
     }
     throw NumericError(
+        NumericError::Kind::EnergyBlowup,
         "energy blow-up: E = " + std::to_string(e) + " from E0 = " + std::to_string(e0_) +
             " (growth " + std::to_string(drift) +
             " x the initial energy scale, limit checks.energy_blowup = " +
@@ -237,6 +241,7 @@ void Simulation::check_energy() {
 void Simulation::step() {
   // Time at the end of the step from the step count, so t carries no accumulated rounding.
   const double t_end = static_cast<double>(step_ + 1) * scene_.dt;
+  events_.clear();
   integrator_->step(*this, scene_.dt);
   check_finite_state();
   state_.t = t_end;

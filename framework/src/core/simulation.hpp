@@ -18,11 +18,23 @@ namespace pinsim {
 
 class Integrator;
 
-/// A run that went numerically wrong: where it began.
+/// A run that went numerically wrong: what kind of failure, and where it began.
 class NumericError : public std::runtime_error {
  public:
-  NumericError(const std::string& what, uint64_t step, double t, int64_t particle)
-      : std::runtime_error(what), step(step), t(t), particle(particle) {}
+  enum class Kind {
+    NonFinite,      ///< a NaN or an infinity in a force or the state
+    EnergyBlowup,   ///< the total energy grew past checks.energy_blowup
+    SolverFailure,  ///< an implicit integrator's linear solve did not converge
+  };
+  NumericError(Kind kind, const std::string& what, uint64_t step, double t, int64_t particle)
+      : std::runtime_error(what), kind(kind), step(step), t(t), particle(particle) {}
+  /// "non_finite", "energy_blowup" or "solver_failure" (summary.json, stress classes).
+  const char* kind_name() const {
+    return kind == Kind::NonFinite      ? "non_finite"
+           : kind == Kind::EnergyBlowup ? "energy_blowup"
+                                        : "solver_failure";
+  }
+  Kind kind;
   uint64_t step;     ///< the step during which it was detected, counting from 1
   double t;          ///< time at detection, s
   int64_t particle;  ///< particle where it began
@@ -41,7 +53,8 @@ class Simulation {
   Simulation(const Scene& scene, PluginLoader& loader, const RunOptions& options = {});
   ~Simulation();
 
-  /// Advances one time step dt; contact events of the step are appended to events().
+  /// Advances one time step dt. The step owns its contact events: it clears events() first,
+  /// then the backend adds the step's contacts (Box2D v3's b2World_Step does the same).
   /// Throws NumericError on NaN/Inf (checked every step) or energy blow-up.
   void step();
 
@@ -71,10 +84,14 @@ class Simulation {
   double dt() const { return scene_.dt; }
   uint64_t step_index() const { return step_; }
   uint64_t force_evaluations() const { return force_evals_; }
-  std::vector<pinsim_event>& events() { return events_; }
+  /// The contacts of the last step, read-only (valid until the next step).
+  const std::vector<pinsim_event>& events() const { return events_; }
   const std::vector<std::unique_ptr<ForceInstance>>& forces() const { return forces_; }
   const BackendInstance& backend() const { return *backend_; }
   const std::string& integrator_name() const { return integrator_name_; }
+  /// The integrator's own figures for summary.json (implicit Euler: its linear solves), or
+  /// null when it has none.
+  nlohmann::json integrator_stats() const;
   double energy_start() const { return e0_; }
   double max_energy_drift() const { return max_drift_; }
 

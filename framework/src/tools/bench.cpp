@@ -74,7 +74,6 @@ Samples reference_samples(const Case& c, const json& backend, PluginLoader& load
   const double per = every / p.dt;
   for (uint64_t n = 1; n <= N; ++n) {
     sim.step();
-    sim.events().clear();
     const double k = static_cast<double>(n) / per;
     if (std::abs(k - std::round(k)) < 1e-9 * static_cast<double>(n) && std::round(k) >= 1)
       out.push_back(sim.state().x);
@@ -109,7 +108,6 @@ Result run_point(const Case& c, const Point& p, int repeats, PluginLoader& loade
     for (uint64_t n = 1; n <= N; ++n) {
       sim.step();
       res.contacts += sim.events().size();
-      sim.events().clear();
       double e = -1.0;
       if (answer) {
         e = (sim.state().x.col(static_cast<Eigen::Index>(answer->particle())) -
@@ -149,7 +147,6 @@ Result run_point(const Case& c, const Point& p, int repeats, PluginLoader& loade
     const auto t0 = std::chrono::steady_clock::now();
     for (uint64_t n = 0; n < N; ++n) {
       sim.step();
-      sim.events().clear();
     }
     times.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
   }

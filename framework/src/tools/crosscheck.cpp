@@ -100,7 +100,6 @@ CrosscheckRun run_for_crosscheck(const Scene& scene_in, PluginLoader& loader,
   const auto start = std::chrono::steady_clock::now();
   try {
     for (uint64_t n = 0; n < steps; ++n) {
-      sim.events().clear();
       sim.step();
       run.events.insert(run.events.end(), sim.events().begin(), sim.events().end());
       sample();

@@ -103,7 +103,6 @@ Outcome run_point(const Case& c, const Point& p, PluginLoader& loader) {
   try {
     for (uint64_t n = 1; n <= N && o.cls != "diverged"; ++n) {
       sim.step();
-      sim.events().clear();
       const State& s = sim.state();
       if (c.displacement_limit > 0.0)
         for (Eigen::Index i = 0; i < s.x.cols() && o.cls != "diverged"; ++i)
@@ -132,8 +131,9 @@ Outcome run_point(const Case& c, const Point& p, PluginLoader& loader) {
       }
     }
   } catch (const NumericError& e) {
-    const std::string what = e.what();
-    o.cls = what.rfind("energy blow-up", 0) == 0 ? "energy_blowup" : "nan";
+    o.cls = e.kind == NumericError::Kind::EnergyBlowup    ? "energy_blowup"
+            : e.kind == NumericError::Kind::SolverFailure ? "solver_failure"
+                                                          : "nan";
     o.bad_step = static_cast<long long>(e.step);
     o.particle = e.particle;
   }
@@ -148,7 +148,7 @@ int class_code(const std::string& c) {
   if (c == "penetration") return 1;
   if (c == "tunnelled") return 2;
   if (c == "energy_blowup" || c == "diverged") return 3;
-  if (c == "nan") return 4;
+  if (c == "nan" || c == "solver_failure") return 4;
   return 5;
 }
 

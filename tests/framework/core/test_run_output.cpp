@@ -97,6 +97,7 @@ TEST_CASE("NaN detection: reports the step, time, particle and plugin where it b
   CHECK(r.exit_code == 1);
   const auto& e = r.summary["error"];
   CHECK(e["kind"] == "numeric");
+  CHECK(e["numeric"] == "non_finite");
   CHECK(e["particle"] == 2);
   CHECK(e["step"] == 35);
   CHECK(e["t"].get<double>() == Approx(0.34));
@@ -135,10 +136,55 @@ TEST_CASE("energy blow-up detection stops the run where it began") {
   CHECK(bad.exit_code == 1);
   const auto& e = bad.summary["error"];
   CHECK(e["kind"] == "numeric");
+  CHECK(e["numeric"] == "energy_blowup");
   CHECK_THAT(e["message"].get<std::string>(), Contains("energy blow-up"));
   // Energy grows by about 5.83^2 = 34 per step: past 1000 x the start within a few steps.
   CHECK(e["step"].get<int>() <= 4);
   CHECK(e["particle"].get<int>() >= 0);
+}
+
+TEST_CASE("implicit Euler reports its linear solves in summary.json") {
+  // A hanging chain of 8 damped springs: each step is one linear solve.
+  const std::string scene = R"({"time": {"dt": 0.01, "duration": 0.5},
+    "integrator": "implicit_euler",
+    "bodies": [{"name": "chain", "type": "strand", "root": [0, 0], "direction": [1, 0],
+                "count": 9, "segment_length": 0.1, "mass": 0.1}],
+    "forces": [{"type": "gravity"},
+               {"type": "damped_spring", "params": {"ks": 500, "kd": 0.5},
+                "elements": {"body": "chain", "set": "edges"}}]})";
+  PluginLoader loader(plugin_search_dirs());
+  const RunResult r = run_scene(parse_scene(scene, "chain.json", "."), loader, {});
+  REQUIRE(r.exit_code == 0);
+  const auto& solver = r.summary["solver"];
+  CHECK(solver["linear_solves"] == 50);
+  CHECK(solver["cg_iterations_per_solve"].get<double>() > 0);
+  CHECK(solver["cg_iterations_max"].get<int>() >= 1);
+  CHECK(solver["lu_fallbacks"] == 0);
+  // CG stops at a relative residual of 1e-12 (its tolerance).
+  CHECK(solver["worst_relative_residual"].get<double>() <= 1e-12);
+  // Explicit integrators have no solver figures.
+  const RunResult e =
+      run_scene(parse_scene(scene, "chain.json", ".", {"integrator=symplectic_euler"}), loader, {});
+  CHECK_FALSE(e.summary.contains("solver"));
+}
+
+TEST_CASE("implicit Euler: a failed linear solve stops the run as a solver failure") {
+  // The fixture's Jacobian is NaN: conjugate gradients and sparse LU both fail, and the
+  // step must not go on with an unconverged velocity.
+  test::FpTrapsOff traps;
+  const std::string scene = R"({"time": {"dt": 0.01, "duration": 0.1},
+    "integrator": "implicit_euler",
+    "particles": [{"x": [0, 0]}, {"x": [1, 0]}],
+    "forces": [{"type": "nan_jacobian", "library": ")" PINSIM_TEST_FIXTURE_DIR
+                            R"(/libfixture_nan_jacobian.so", "elements": [[0, 1]]}]})";
+  PluginLoader loader(plugin_search_dirs());
+  const RunResult r = run_scene(parse_scene(scene, "nan_jacobian.json", "."), loader, {});
+  CHECK(r.exit_code == 1);
+  const auto& e = r.summary["error"];
+  CHECK(e["kind"] == "numeric");
+  CHECK(e["numeric"] == "solver_failure");
+  CHECK(e["step"] == 1);
+  CHECK_THAT(e["message"].get<std::string>(), Contains("implicit_euler: the linear solve failed"));
 }
 
 TEST_CASE("interrupted run: stops cleanly with valid files") {

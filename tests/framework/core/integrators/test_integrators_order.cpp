@@ -404,7 +404,6 @@ TEST_CASE("bouncing ball on the sdf backend: velocity Verlet and RK4 stay second
     for (int n = 1; n <= N; ++n) {
       sim.step();
       bounces += static_cast<int>(sim.events().size());
-      sim.events().clear();
       err =
           std::max(err, (sim.state().x.col(0) - bouncing_ball(n * h, 1.0, 0.1, 0.3, 9.81)).norm());
     }

@@ -1,27 +1,9 @@
-// Forward Euler and classical RK4, with the position update done by the backend.
-#include "core/integrator_kinds.hpp"
+// Classical fourth-order Runge-Kutta, with the position update done by the backend.
+#include "core/integrators.hpp"
 #include "core/simulation.hpp"
 
 namespace pinsim {
 namespace {
-
-/// Forward (explicit) Euler, drift then kick:
-///   x_{n+1} = x_n + h v_n (backend, resolving contacts);  v_{n+1} = v_n + h M^-1 f(x_n, v_n).
-/// First order. On the harmonic oscillator the energy grows by exactly (1 + (h w)^2) per
-/// step: unstable for every h without damping.
-class ExplicitEuler : public Integrator {
- public:
-  void step(Simulation& sim, double h) override {
-    State& s = sim.state();
-    sim.compute_forces(s, f_);
-    accelerations(s, f_, a_);
-    sim.drift(s, h);
-    s.v += h * a_;
-  }
-
- private:
-  Eigen::Matrix2Xd f_, a_;
-};
 
 /// Classical Runge-Kutta 4 on (x, v):
 ///   k1 = (v, a(x, v)),  k2 = f at (x + h/2 k1),  k3 = f at (x + h/2 k2),  k4 = f at (x + h k3),
@@ -82,7 +64,6 @@ class Rk4 : public Integrator {
 
 }  // namespace
 
-std::unique_ptr<Integrator> make_explicit_euler() { return std::make_unique<ExplicitEuler>(); }
 std::unique_ptr<Integrator> make_rk4() { return std::make_unique<Rk4>(); }
 
 }  // namespace pinsim

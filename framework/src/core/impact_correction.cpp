@@ -1,6 +1,6 @@
 #include <algorithm>
 
-#include "core/integrator_kinds.hpp"
+#include "core/integrators.hpp"
 
 namespace pinsim {
 

@@ -1,0 +1,47 @@
+// The two Euler methods of the seed, with the position update done by the backend.
+#include "core/integrators.hpp"
+#include "core/simulation.hpp"
+
+namespace pinsim {
+namespace {
+
+/// Symplectic (semi-implicit) Euler, kick then drift:
+///   v_{n+1} = v_n + h M^-1 f(x_n, v_n);  x_{n+1} = x_n + h v_{n+1} (by the backend).
+/// For constant gravity y_N = y_0 + v_0 T - g T^2/2 - g h T/2: first order, error -g h T/2.
+class SymplecticEuler : public Integrator {
+ public:
+  void step(Simulation& sim, double h) override {
+    State& s = sim.state();
+    sim.compute_forces(s, f_);
+    kick(s, f_, h);
+    sim.drift(s, h);
+  }
+
+ private:
+  Eigen::Matrix2Xd f_;
+};
+
+/// Forward (explicit) Euler, drift then kick:
+///   x_{n+1} = x_n + h v_n (backend, resolving contacts);  v_{n+1} = v_n + h M^-1 f(x_n, v_n).
+/// First order. On the harmonic oscillator the energy grows by exactly (1 + (h w)^2) per
+/// step: unstable for every h without damping.
+class ExplicitEuler : public Integrator {
+ public:
+  void step(Simulation& sim, double h) override {
+    State& s = sim.state();
+    sim.compute_forces(s, f_);
+    accelerations(s, f_, a_);
+    sim.drift(s, h);
+    s.v += h * a_;
+  }
+
+ private:
+  Eigen::Matrix2Xd f_, a_;
+};
+
+}  // namespace
+
+std::unique_ptr<Integrator> make_symplectic_euler() { return std::make_unique<SymplecticEuler>(); }
+std::unique_ptr<Integrator> make_explicit_euler() { return std::make_unique<ExplicitEuler>(); }
+
+}  // namespace pinsim

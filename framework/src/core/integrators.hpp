@@ -1,0 +1,49 @@
+// The integrators behind make_integrator, one file each, and the helpers they share.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstddef>
+#include <memory>
+#include <pinsim/state.hpp>
+#include <vector>
+
+#include "core/integrator.hpp"
+
+namespace pinsim {
+
+/// a = M^-1 f per particle (pinned particles, inv_mass 0, get a = 0).
+inline void accelerations(const State& s, const Eigen::Matrix2Xd& f, Eigen::Matrix2Xd& a) {
+  a.resize(2, s.x.cols());
+  for (Eigen::Index i = 0; i < s.x.cols(); ++i) a.col(i) = s.inv_mass[i] * f.col(i);
+}
+
+/// v += h M^-1 f, per particle (pinned particles have inv_mass 0 and keep their velocity).
+inline void kick(State& s, const Eigen::Matrix2Xd& f, double h) {
+  for (Eigen::Index i = 0; i < s.x.cols(); ++i) s.v.col(i) += (h * s.inv_mass[i]) * f.col(i);
+}
+
+/// Impact correction (impact_correction.cpp). Corrects the impulses of the obstacle
+/// contacts events[first..] of a drift that started at t0 and moved every particle with the
+/// constant velocity v_n + c h a_n, when the particle's true velocity at the time of impact t0 +
+/// tau is v_n + tau a_n (a_n = M^-1 f(x_n)). The backend reflected the normal velocity vn of the
+/// drift velocity; the impulse it should have reflected is vn + (tau - c h) a_n.n, so each event
+/// adds
+///   dv = -(1 + e) (tau - c h) (a_n.n) n,   1 + e = (vn_after - vn_before) / -vn_before.
+/// Without it a bounce leaves an O(h) velocity error and a second-order method drops to
+/// first order (see docs/bench_and_stress.md); with it the error per bounce is O(h^2).
+void correct_impacts(State& s, const std::vector<pinsim_event>& events, std::size_t first,
+                     double t0, double c_h, const Eigen::Matrix2Xd& a_n);
+
+/// Symplectic Euler, kick then drift (integrator_euler.cpp).
+std::unique_ptr<Integrator> make_symplectic_euler();
+/// Velocity Verlet, kick/2 - drift - kick/2 (integrator_verlet.cpp).
+std::unique_ptr<Integrator> make_velocity_verlet();
+/// Forward (explicit) Euler: x_{n+1} = x_n + h v_n (the drift), v_{n+1} = v_n + h M^-1 f_n.
+std::unique_ptr<Integrator> make_explicit_euler();
+/// Classical fourth-order Runge-Kutta; the position update goes through the backend
+/// (integrator_rk4.cpp).
+std::unique_ptr<Integrator> make_rk4();
+/// Linearized backward Euler of Baraff & Witkin 1998 (integrator_implicit_euler.cpp).
+std::unique_ptr<Integrator> make_implicit_euler();
+
+}  // namespace pinsim
