@@ -14,6 +14,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "pictures/cairo_handles.hpp"
 #include "pictures/play_game.hpp"
 #include "pictures/render.hpp"
 #include "pictures/render_field.hpp"
@@ -24,6 +25,20 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 constexpr double kFps = 60.0;
+
+// Owning SDL handles (the destroy functions of SDL2), and SDL_Init / SDL_Quit as a scope.
+using SdlWindow = std::unique_ptr<SDL_Window, CDeleter<SDL_Window, SDL_DestroyWindow>>;
+using SdlRenderer = std::unique_ptr<SDL_Renderer, CDeleter<SDL_Renderer, SDL_DestroyRenderer>>;
+using SdlTexture = std::unique_ptr<SDL_Texture, CDeleter<SDL_Texture, SDL_DestroyTexture>>;
+struct SdlVideo {
+  SdlVideo() {
+    if (SDL_Init(SDL_INIT_VIDEO) != 0)
+      throw std::runtime_error(std::string("SDL_Init: ") + SDL_GetError());
+  }
+  ~SdlVideo() { SDL_Quit(); }
+  SdlVideo(const SdlVideo&) = delete;
+  SdlVideo& operator=(const SdlVideo&) = delete;
+};
 
 struct PlayArgs {
   std::string scene;
@@ -198,28 +213,29 @@ int play_command(const PlayArgs& a) {
 
   // The static table, pre-rendered once.
   const PixelMap map(scene_view(scene), a.width);
-  cairo_surface_t* bg = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, map.width, map.height);
+  const CairoSurface bg = image_surface(map.width, map.height);
   {
-    cairo_t* cr = cairo_create(bg);
+    const CairoContext cr = cairo_context(bg.get());
     auto be = make_backend(scene, loader, static_obstacles(scene.backend_scene));
     const FieldGrid g =
         sample_field([&](double x, double y) { return be->distance(x, y, 0.0, nullptr); }, map, 1);
-    draw_field(cr, map, g, contour_spacing(map.view));
-    cairo_destroy(cr);
+    draw_field(cr.get(), map, g, contour_spacing(map.view));
   }
-  cairo_surface_t* frame = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, map.width, map.height);
-  Painter painter(*game, map, bg);
+  const CairoSurface frame = image_surface(map.width, map.height);
+  Painter painter(*game, map, bg.get());
 
-  if (SDL_Init(SDL_INIT_VIDEO) != 0)
-    throw std::runtime_error(std::string("SDL_Init: ") + SDL_GetError());
-  SDL_Window* win = SDL_CreateWindow(("pinsim play: " + scene.name).c_str(), SDL_WINDOWPOS_CENTERED,
-                                     SDL_WINDOWPOS_CENTERED, map.width, map.height, 0);
+  // Every SDL object is owned, so a throw anywhere below releases them all.
+  const SdlVideo video;
+  const SdlWindow win(SDL_CreateWindow(("pinsim play: " + scene.name).c_str(),
+                                       SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED, map.width,
+                                       map.height, 0));
   if (!win) throw std::runtime_error(std::string("SDL_CreateWindow: ") + SDL_GetError());
-  SDL_Renderer* ren = SDL_CreateRenderer(win, -1, SDL_RENDERER_PRESENTVSYNC);
-  if (!ren) ren = SDL_CreateRenderer(win, -1, SDL_RENDERER_SOFTWARE);
+  SdlRenderer ren(SDL_CreateRenderer(win.get(), -1, SDL_RENDERER_PRESENTVSYNC));
+  if (!ren) ren.reset(SDL_CreateRenderer(win.get(), -1, SDL_RENDERER_SOFTWARE));
   if (!ren) throw std::runtime_error(std::string("SDL_CreateRenderer: ") + SDL_GetError());
-  SDL_Texture* tex = SDL_CreateTexture(ren, SDL_PIXELFORMAT_ARGB8888, SDL_TEXTUREACCESS_STREAMING,
-                                       map.width, map.height);
+  const SdlTexture tex(SDL_CreateTexture(ren.get(), SDL_PIXELFORMAT_ARGB8888,
+                                         SDL_TEXTUREACCESS_STREAMING, map.width, map.height));
+  if (!tex) throw std::runtime_error(std::string("SDL_CreateTexture: ") + SDL_GetError());
 
   std::size_t next_script = 0;
   uint64_t frame_no = 0;
@@ -249,38 +265,28 @@ int play_command(const PlayArgs& a) {
     }
     if (a.seconds > 0 && t_frame >= a.seconds - 1e-9) quit = true;
 
-    cairo_t* cr = cairo_create(frame);
-    painter.paint(cr, *game);
-    cairo_destroy(cr);
-    cairo_surface_flush(frame);
-    SDL_UpdateTexture(tex, nullptr, cairo_image_surface_get_data(frame),
-                      cairo_image_surface_get_stride(frame));
-    SDL_RenderClear(ren);
-    SDL_RenderCopy(ren, tex, nullptr, nullptr);
+    painter.paint(cairo_context(frame.get()).get(), *game);
+    cairo_surface_flush(frame.get());
+    SDL_UpdateTexture(tex.get(), nullptr, cairo_image_surface_get_data(frame.get()),
+                      cairo_image_surface_get_stride(frame.get()));
+    SDL_RenderClear(ren.get());
+    SDL_RenderCopy(ren.get(), tex.get(), nullptr, nullptr);
     if (quit && !a.screenshot.empty()) {
       // What the window shows, read back from the renderer.
-      cairo_surface_t* shot =
-          cairo_image_surface_create(CAIRO_FORMAT_ARGB32, map.width, map.height);
-      cairo_surface_flush(shot);
-      if (SDL_RenderReadPixels(ren, nullptr, SDL_PIXELFORMAT_ARGB8888,
-                               cairo_image_surface_get_data(shot),
-                               cairo_image_surface_get_stride(shot)) != 0)
+      const CairoSurface shot = image_surface(map.width, map.height);
+      cairo_surface_flush(shot.get());
+      if (SDL_RenderReadPixels(ren.get(), nullptr, SDL_PIXELFORMAT_ARGB8888,
+                               cairo_image_surface_get_data(shot.get()),
+                               cairo_image_surface_get_stride(shot.get())) != 0)
         spdlog::warn("screenshot: {}", SDL_GetError());
-      cairo_surface_mark_dirty(shot);
-      cairo_surface_write_to_png(shot, a.screenshot.c_str());
-      cairo_surface_destroy(shot);
+      cairo_surface_mark_dirty(shot.get());
+      cairo_surface_write_to_png(shot.get(), a.screenshot.c_str());
     }
-    SDL_RenderPresent(ren);
+    SDL_RenderPresent(ren.get());
     // 60 frames per second (vsync may already have waited).
     const uint32_t spent = SDL_GetTicks() - frame_start;
     if (spent < 16) SDL_Delay(16 - spent);
   }
-  SDL_DestroyTexture(tex);
-  SDL_DestroyRenderer(ren);
-  SDL_DestroyWindow(win);
-  SDL_Quit();
-  cairo_surface_destroy(frame);
-  cairo_surface_destroy(bg);
 
   const json rec = game->recording(scene_file);
   spdlog::info("score {} after {:.2f} s ({} steps), balls left {}{}; state hash {}", game->score(),

@@ -79,7 +79,6 @@ class PinballGame {
   std::vector<pinsim_event> events_;
   nlohmann::json inputs_ = nlohmann::json::array();  ///< as the backend's "inputs"
   std::vector<GameInput> recorded_;
-  std::vector<std::pair<uint64_t, GameInput>> pending_;
   std::vector<std::string> input_names_;
   std::vector<bool> pressed_;
   ViewBox table_;  ///< the obstacles' bounds: below it the ball has drained
