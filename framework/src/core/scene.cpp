@@ -62,6 +62,124 @@ void read_particles(const nlohmann::json& list, const Loc& at, ParticleList& out
   }
 }
 
+// time: {"dt" > 0, "duration" >= 0}, at most 1e12 steps.
+void read_time(const nlohmann::json& d, const Loc& root, Scene& s) {
+  if (!d.contains("time"))
+    throw(root / "time").error("required object {\"dt\", \"duration\"} is missing");
+  const auto& t = d.at("time");
+  require_object(t, root / "time");
+  check_keys(t, {"dt", "duration"}, root / "time");
+  s.dt = read_number(t, "dt", root / "time");
+  if (!(s.dt > 0.0)) throw(root / "time" / "dt").error("must be > 0, got " + t.at("dt").dump());
+  s.duration = read_number(t, "duration", root / "time");
+  if (!(s.duration >= 0.0))
+    throw(root / "time" / "duration").error("must be >= 0, got " + t.at("duration").dump());
+  if (s.duration / s.dt > 1e12)
+    throw(root / "time").error("duration / dt is over 1e12 steps; check the units");
+}
+
+// backend: a name, or {"name", "library", "params"}; "none" if absent.
+PluginRef read_backend(const nlohmann::json& d, const Loc& root) {
+  if (!d.contains("backend"))
+    return PluginRef{"none", "", nlohmann::json::object(), (root / "backend").str()};
+  const auto& b = d.at("backend");
+  if (b.is_string())
+    return PluginRef{b.get<std::string>(), "", nlohmann::json::object(), (root / "backend").str()};
+  require_object(b, root / "backend");
+  check_keys(b, {"name", "library", "params"}, root / "backend");
+  return read_plugin_ref(b, root / "backend", "name");
+}
+
+// plugin_path: folders, relative ones taken from the scene file's folder.
+std::vector<fs::path> read_plugin_path(const nlohmann::json& d, const Loc& root,
+                                       const fs::path& base_dir) {
+  std::vector<fs::path> out;
+  if (!d.contains("plugin_path")) return out;
+  const auto& pp = d.at("plugin_path");
+  if (!pp.is_array())
+    throw(root / "plugin_path").error("expected a list of folders, " + describe(pp));
+  for (std::size_t i = 0; i < pp.size(); ++i) {
+    if (!pp[i].is_string())
+      throw(root / "plugin_path")[i].error("expected a folder, " + describe(pp[i]));
+    fs::path p = pp[i].get<std::string>();
+    out.push_back(p.is_absolute() ? p : base_dir / p);
+  }
+  return out;
+}
+
+// particles, then bodies (each adds its particles and element sets; names are unique);
+// at least one particle in all.
+void read_particles_and_bodies(const nlohmann::json& d, const Loc& root, Scene& s) {
+  if (d.contains("particles")) read_particles(d.at("particles"), root / "particles", s.particles);
+  if (d.contains("bodies")) {
+    const auto& bl = d.at("bodies");
+    if (!bl.is_array())
+      throw(root / "bodies").error("expected an array of bodies, " + describe(bl));
+    for (std::size_t i = 0; i < bl.size(); ++i) {
+      require_object(bl[i], (root / "bodies")[i]);
+      Body b = build_body(bl[i], (root / "bodies")[i].str(), s.particles);
+      for (const auto& other : s.bodies)
+        if (!b.name.empty() && other.name == b.name)
+          throw((root / "bodies")[i] / "name")
+              .error("a body named '" + b.name + "' already exists");
+      s.bodies.push_back(std::move(b));
+    }
+  }
+  if (s.particles.size() == 0)
+    throw root.error("the scene has no particles (give \"particles\" or \"bodies\")");
+}
+
+// forces: plugin references by "type", with their elements unresolved.
+std::vector<ForceSpec> read_forces(const nlohmann::json& d, const Loc& root) {
+  std::vector<ForceSpec> out;
+  if (!d.contains("forces")) return out;
+  const auto& fl = d.at("forces");
+  if (!fl.is_array()) throw(root / "forces").error("expected an array of forces, " + describe(fl));
+  for (std::size_t i = 0; i < fl.size(); ++i) {
+    const Loc fa = (root / "forces")[i];
+    require_object(fl[i], fa);
+    check_keys(fl[i], {"type", "library", "params", "elements", "name"}, fa);
+    ForceSpec f;
+    static_cast<PluginRef&>(f) = read_plugin_ref(fl[i], fa, "type");
+    f.elements = fl[i].value("elements", nlohmann::json());
+    out.push_back(std::move(f));
+  }
+  return out;
+}
+
+// What the backend gets, verbatim: obstacles (an array), inputs and contacts.
+nlohmann::json read_backend_scene(const nlohmann::json& d, const Loc& root) {
+  nlohmann::json out = nlohmann::json::object();
+  for (const char* k : {"obstacles", "inputs", "contacts"})
+    if (d.contains(k)) out[k] = d.at(k);
+  if (out.contains("obstacles") && !out["obstacles"].is_array())
+    throw(root / "obstacles")
+        .error("expected an array of obstacles, " + describe(d.at("obstacles")));
+  return out;
+}
+
+// output: {"every" >= 1}.
+void read_output(const nlohmann::json& d, const Loc& root, Scene& s) {
+  if (!d.contains("output")) return;
+  const auto& o = d.at("output");
+  require_object(o, root / "output");
+  check_keys(o, {"every"}, root / "output");
+  s.output_every = read_count_or(o, "every", 1, root / "output");
+  if (s.output_every == 0) throw(root / "output" / "every").error("must be >= 1, got 0");
+}
+
+// checks: {"energy_blowup" > 0, "energy_every" >= 1}.
+void read_checks(const nlohmann::json& d, const Loc& root, Scene& s) {
+  if (!d.contains("checks")) return;
+  const auto& c = d.at("checks");
+  require_object(c, root / "checks");
+  check_keys(c, {"energy_blowup", "energy_every"}, root / "checks");
+  s.energy_blowup = read_number_or(c, "energy_blowup", s.energy_blowup, root / "checks");
+  if (!(s.energy_blowup > 0.0)) throw(root / "checks" / "energy_blowup").error("must be > 0");
+  s.energy_every = read_count_or(c, "energy_every", s.energy_every, root / "checks");
+  if (s.energy_every == 0) throw(root / "checks" / "energy_every").error("must be >= 1, got 0");
+}
+
 }  // namespace
 
 void apply_override(nlohmann::json& doc, const std::string& assignment, const std::string& label) {
@@ -214,6 +332,7 @@ Scene parse_scene(const std::string& text, const std::string& label, const fs::p
   Scene s;
   s.label = label;
   s.base_dir = base_dir;
+  // The document with the --set overrides applied; only known top-level keys.
   s.doc = parse_json_text(text, label);
   for (const auto& o : overrides) apply_override(s.doc, o, label);
   const auto& d = s.doc;
@@ -224,113 +343,18 @@ Scene parse_scene(const std::string& text, const std::string& label, const fs::p
               "particles", "bodies", "forces", "obstacles", "inputs", "contacts", "output",
               "checks", "crosscheck"},
              root);
+  // Each part in turn: every error names its JSON path.
   s.name = read_string_or(d, "name", fs::path(label).stem().string(), root);
   s.description = read_string_or(d, "description", "", root);
-
-  // time
-  if (!d.contains("time"))
-    throw(root / "time").error("required object {\"dt\", \"duration\"} is missing");
-  const auto& t = d.at("time");
-  require_object(t, root / "time");
-  check_keys(t, {"dt", "duration"}, root / "time");
-  s.dt = read_number(t, "dt", root / "time");
-  if (!(s.dt > 0.0)) throw(root / "time" / "dt").error("must be > 0, got " + t.at("dt").dump());
-  s.duration = read_number(t, "duration", root / "time");
-  if (!(s.duration >= 0.0))
-    throw(root / "time" / "duration").error("must be >= 0, got " + t.at("duration").dump());
-  if (s.duration / s.dt > 1e12)
-    throw(root / "time").error("duration / dt is over 1e12 steps; check the units");
-
+  read_time(d, root, s);
   s.integrator = read_string_or(d, "integrator", "symplectic_euler", root);
-
-  // backend
-  if (d.contains("backend")) {
-    const auto& b = d.at("backend");
-    if (b.is_string()) {
-      s.backend =
-          PluginRef{b.get<std::string>(), "", nlohmann::json::object(), (root / "backend").str()};
-    } else {
-      require_object(b, root / "backend");
-      check_keys(b, {"name", "library", "params"}, root / "backend");
-      s.backend = read_plugin_ref(b, root / "backend", "name");
-    }
-  } else {
-    s.backend = PluginRef{"none", "", nlohmann::json::object(), (root / "backend").str()};
-  }
-
-  // plugin_path: folders relative to the scene file
-  if (d.contains("plugin_path")) {
-    const auto& pp = d.at("plugin_path");
-    if (!pp.is_array())
-      throw(root / "plugin_path").error("expected a list of folders, " + describe(pp));
-    for (std::size_t i = 0; i < pp.size(); ++i) {
-      if (!pp[i].is_string())
-        throw(root / "plugin_path")[i].error("expected a folder, " + describe(pp[i]));
-      fs::path p = pp[i].get<std::string>();
-      s.plugin_path.push_back(p.is_absolute() ? p : base_dir / p);
-    }
-  }
-
-  // particles and bodies
-  if (d.contains("particles")) read_particles(d.at("particles"), root / "particles", s.particles);
-  if (d.contains("bodies")) {
-    const auto& bl = d.at("bodies");
-    if (!bl.is_array())
-      throw(root / "bodies").error("expected an array of bodies, " + describe(bl));
-    for (std::size_t i = 0; i < bl.size(); ++i) {
-      require_object(bl[i], (root / "bodies")[i]);
-      Body b = build_body(bl[i], (root / "bodies")[i].str(), s.particles);
-      for (const auto& other : s.bodies)
-        if (!b.name.empty() && other.name == b.name)
-          throw((root / "bodies")[i] / "name")
-              .error("a body named '" + b.name + "' already exists");
-      s.bodies.push_back(std::move(b));
-    }
-  }
-  if (s.particles.size() == 0)
-    throw root.error("the scene has no particles (give \"particles\" or \"bodies\")");
-
-  // forces
-  if (d.contains("forces")) {
-    const auto& fl = d.at("forces");
-    if (!fl.is_array())
-      throw(root / "forces").error("expected an array of forces, " + describe(fl));
-    for (std::size_t i = 0; i < fl.size(); ++i) {
-      const Loc fa = (root / "forces")[i];
-      require_object(fl[i], fa);
-      check_keys(fl[i], {"type", "library", "params", "elements", "name"}, fa);
-      ForceSpec f;
-      static_cast<PluginRef&>(f) = read_plugin_ref(fl[i], fa, "type");
-      f.elements = fl[i].value("elements", nlohmann::json());
-      s.forces.push_back(std::move(f));
-    }
-  }
-
-  // what the backend gets, verbatim
-  s.backend_scene = nlohmann::json::object();
-  for (const char* k : {"obstacles", "inputs", "contacts"})
-    if (d.contains(k)) s.backend_scene[k] = d.at(k);
-  if (s.backend_scene.contains("obstacles") && !s.backend_scene["obstacles"].is_array())
-    throw(root / "obstacles")
-        .error("expected an array of obstacles, " + describe(d.at("obstacles")));
-
-  // output and checks
-  if (d.contains("output")) {
-    const auto& o = d.at("output");
-    require_object(o, root / "output");
-    check_keys(o, {"every"}, root / "output");
-    s.output_every = read_count_or(o, "every", 1, root / "output");
-    if (s.output_every == 0) throw(root / "output" / "every").error("must be >= 1, got 0");
-  }
-  if (d.contains("checks")) {
-    const auto& c = d.at("checks");
-    require_object(c, root / "checks");
-    check_keys(c, {"energy_blowup", "energy_every"}, root / "checks");
-    s.energy_blowup = read_number_or(c, "energy_blowup", s.energy_blowup, root / "checks");
-    if (!(s.energy_blowup > 0.0)) throw(root / "checks" / "energy_blowup").error("must be > 0");
-    s.energy_every = read_count_or(c, "energy_every", s.energy_every, root / "checks");
-    if (s.energy_every == 0) throw(root / "checks" / "energy_every").error("must be >= 1, got 0");
-  }
+  s.backend = read_backend(d, root);
+  s.plugin_path = read_plugin_path(d, root, base_dir);
+  read_particles_and_bodies(d, root, s);
+  s.forces = read_forces(d, root);
+  s.backend_scene = read_backend_scene(d, root);
+  read_output(d, root, s);
+  read_checks(d, root, s);
   return s;
 }
 
