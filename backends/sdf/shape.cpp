@@ -1,8 +1,11 @@
 #include "shape.hpp"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <functional>
 #include <numbers>
+#include <string_view>
 
 namespace pinsim::sdf {
 namespace {
@@ -41,6 +44,239 @@ Aabb transform_box(const Aabb& b, double c, double s, const Vec2& t) {
   return out;
 }
 
+bool positive(double x) { return x > 0.0; }
+bool non_negative(double x) { return x >= 0.0; }
+
+/// What a per-type parser may add to the tree besides its own node.
+struct TreeParts {
+  std::vector<Vec2>& verts;                            ///< polygon vertices
+  std::vector<uint32_t>& children;                     ///< child node indices
+  std::function<uint32_t(const JsonIn&)> parse_child;  ///< parses a node one level deeper
+};
+
+/// Reads one shape type's keys into its node (the transform is already read).
+using ShapeParser = void (*)(const JsonIn& j, ShapeNode& n, TreeParts& tree);
+
+// "transform": {"translate": [x, y], "rotate": angle}, both optional.
+void read_transform(const JsonIn& tr, ShapeNode& n) {
+  tr.only({"translate", "rotate"});
+  n.transformed = true;
+  n.tt = tr.vec2("translate", Vec2(0.0, 0.0));
+  const double a = tr.number("rotate", 0.0);
+  n.tc = std::cos(a);
+  n.ts = std::sin(a);
+}
+
+// circle: center, radius > 0; evaluated as a rounded box of half size 0.
+void parse_circle(const JsonIn& j, ShapeNode& n, TreeParts&) {
+  j.only({"type", "transform", "center", "radius"});
+  n.type = ShapeType::kCircle;
+  n.c = j.vec2("center");
+  n.r0 = j.number_if("radius", positive, "must be > 0");
+}
+
+// box and rounded_box: center, half_size > 0, angle; a rounded box's corner_radius is at
+// most the smaller half size and is taken off the half size.
+void parse_box_like(const JsonIn& j, ShapeNode& n, bool rounded) {
+  if (rounded)
+    j.only({"type", "transform", "center", "half_size", "angle", "corner_radius"});
+  else
+    j.only({"type", "transform", "center", "half_size", "angle"});
+  n.type = rounded ? ShapeType::kRoundedBox : ShapeType::kBox;
+  n.c = j.vec2("center");
+  const Vec2 h = j.vec2("half_size");
+  if (!(h.x() > 0.0 && h.y() > 0.0))
+    j.fail("half_size", "both components must be > 0, got " + JsonIn::show(j.json()["half_size"]));
+  const double a = j.number("angle", 0.0);
+  n.ca = std::cos(a);
+  n.sa = std::sin(a);
+  if (rounded) {
+    const double cr = j.number("corner_radius");
+    if (!(cr >= 0.0 && cr <= std::min(h.x(), h.y())))
+      j.fail("corner_radius", "must be in [0, min(half_size)] = [0, " +
+                                  std::to_string(std::min(h.x(), h.y())) + "], got " +
+                                  JsonIn::show(j.json()["corner_radius"]));
+    n.r0 = cr;
+    n.b = h - Vec2(cr, cr);
+  } else {
+    n.b = h;
+  }
+}
+void parse_box(const JsonIn& j, ShapeNode& n, TreeParts&) { parse_box_like(j, n, false); }
+void parse_rounded_box(const JsonIn& j, ShapeNode& n, TreeParts&) { parse_box_like(j, n, true); }
+
+// capsule: ends a, b and radius >= 0; evaluated as a rounded box of half size
+// (|b - a| / 2, 0) about the midpoint, rotated to the axis: the distance to the segment,
+// minus the radius.
+void parse_capsule(const JsonIn& j, ShapeNode& n, TreeParts&) {
+  j.only({"type", "transform", "a", "b", "radius"});
+  n.type = ShapeType::kCapsule;
+  const Vec2 a = j.vec2("a"), ab = j.vec2("b") - a;
+  n.r0 = j.number_if("radius", non_negative, "must be >= 0");
+  const double len = ab.norm();
+  n.c = a + 0.5 * ab;
+  n.b = Vec2(0.5 * len, 0.0);
+  if (len > 0.0) {
+    n.ca = ab.x() / len;
+    n.sa = ab.y() / len;
+  }
+}
+
+// tapered_capsule: ends a, b with radii radius_a, radius_b, neither end disc containing
+// the other; stored in iq's form (axis, a and b constants).
+void parse_tapered_capsule(const JsonIn& j, ShapeNode& n, TreeParts&) {
+  j.only({"type", "transform", "a", "b", "radius_a", "radius_b"});
+  n.type = ShapeType::kTaperedCapsule;
+  n.c = j.vec2("a");
+  const Vec2 ab = j.vec2("b") - n.c;
+  n.r0 = j.number_if("radius_a", non_negative, "must be >= 0");
+  n.r1 = j.number_if("radius_b", non_negative, "must be >= 0");
+  n.h = ab.norm();
+  if (!(std::abs(n.r0 - n.r1) < n.h))
+    j.fail("b", "need |radius_a - radius_b| < |b - a| (one disc may not contain the other)");
+  n.b = ab / n.h;                       // axis (local +y)
+  n.k0 = (n.r0 - n.r1) / n.h;           // iq's b
+  n.k1 = std::sqrt(1.0 - n.k0 * n.k0);  // iq's a
+}
+
+// polygon: at least 3 points, a simple polygon of non-zero area; its vertices are added
+// counter-clockwise to the tree's vertex list.
+void parse_polygon(const JsonIn& j, ShapeNode& n, TreeParts& tree) {
+  j.only({"type", "transform", "points"});
+  n.type = ShapeType::kPolygon;
+  const auto& pts = j.array("points");
+  if (pts.size() < 3) j.fail("points", "need at least 3 points, got " + std::to_string(pts.size()));
+  std::vector<Vec2> v;
+  for (std::size_t i = 0; i < pts.size(); ++i) {
+    if (!JsonIn::is_vec2(pts[i]))
+      j.fail("points[" + std::to_string(i) + "]", "expected [x, y], got " + JsonIn::show(pts[i]));
+    v.emplace_back(pts[i][0].get<double>(), pts[i][1].get<double>());
+  }
+  double area2 = 0.0;
+  for (std::size_t i = 0; i < v.size(); ++i) area2 += cross(v[i], v[(i + 1) % v.size()]);
+  if (!(std::abs(area2) > 0.0)) j.fail("points", "polygon has zero area");
+  const std::size_t m = v.size();
+  for (std::size_t i = 0; i < m; ++i) {
+    if (v[i] == v[(i + 1) % m])
+      j.fail("points[" + std::to_string(i) + "]", "repeats the next point");
+    for (std::size_t k = i + 2; k < m; ++k) {
+      if (i == 0 && k == m - 1) continue;  // adjacent through the wrap
+      if (segments_touch(v[i], v[(i + 1) % m], v[k], v[(k + 1) % m]))
+        j.fail("points", "polygon is not simple: edge " + std::to_string(i) + " touches edge " +
+                             std::to_string(k));
+    }
+  }
+  if (area2 < 0.0) std::reverse(v.begin(), v.end());  // counter-clockwise from here on
+  n.first = static_cast<uint32_t>(tree.verts.size());
+  n.count = static_cast<uint32_t>(m);
+  tree.verts.insert(tree.verts.end(), v.begin(), v.end());
+}
+
+// arc: a ring sector of radius > 0 and thickness > 0 from start_angle to end_angle
+// (sweep in (0, 2 pi]); local +y is the middle direction.
+void parse_arc(const JsonIn& j, ShapeNode& n, TreeParts&) {
+  j.only({"type", "transform", "center", "radius", "start_angle", "end_angle", "thickness"});
+  n.type = ShapeType::kArc;
+  n.c = j.vec2("center");
+  n.r0 = j.number_if("radius", positive, "must be > 0");
+  n.r1 = 0.5 * j.number_if("thickness", positive, "must be > 0");
+  const double a0 = j.number("start_angle");
+  const double a1 = j.number("end_angle");
+  const double sweep = a1 - a0;
+  if (!(sweep > 0.0 && sweep <= 2.0 * std::numbers::pi + 1e-12))
+    j.fail("end_angle",
+           "end_angle - start_angle must be in (0, 2 pi], got " + std::to_string(sweep));
+  const double mid = a0 + 0.5 * sweep;
+  n.ca = std::cos(mid);
+  n.sa = std::sin(mid);
+  n.k0 = std::sin(0.5 * std::min(sweep, 2.0 * std::numbers::pi));
+  n.k1 = std::cos(0.5 * std::min(sweep, 2.0 * std::numbers::pi));
+}
+
+// half_plane: a point on the boundary and the outward normal (non-zero, normalized).
+void parse_half_plane(const JsonIn& j, ShapeNode& n, TreeParts&) {
+  j.only({"type", "transform", "point", "normal"});
+  n.type = ShapeType::kHalfPlane;
+  n.c = j.vec2("point");
+  const Vec2 nn = j.vec2("normal");
+  if (!(nn.norm() > 0.0)) j.fail("normal", "must be non-zero");
+  n.b = nn / nn.norm();
+}
+
+// union, intersection and subtraction: "shapes", at least one (two for a subtraction),
+// parsed one level deeper and added to the tree's child list.
+void parse_boolean(const JsonIn& j, ShapeNode& n, TreeParts& tree, ShapeType type) {
+  j.only({"type", "transform", "shapes"});
+  n.type = type;
+  const auto& arr = j.array("shapes");
+  const std::size_t need = n.type == ShapeType::kSubtraction ? 2 : 1;
+  if (arr.size() < need)
+    j.fail("shapes",
+           "need at least " + std::to_string(need) + " shapes, got " + std::to_string(arr.size()));
+  std::vector<uint32_t> kids;
+  for (std::size_t i = 0; i < arr.size(); ++i)
+    kids.push_back(
+        tree.parse_child(JsonIn(arr[i], j.at("shapes[" + std::to_string(i) + "]"), j.ctx())));
+  n.first = static_cast<uint32_t>(tree.children.size());
+  n.count = static_cast<uint32_t>(kids.size());
+  tree.children.insert(tree.children.end(), kids.begin(), kids.end());
+}
+void parse_union(const JsonIn& j, ShapeNode& n, TreeParts& tree) {
+  parse_boolean(j, n, tree, ShapeType::kUnion);
+}
+void parse_intersection(const JsonIn& j, ShapeNode& n, TreeParts& tree) {
+  parse_boolean(j, n, tree, ShapeType::kIntersection);
+}
+void parse_subtraction(const JsonIn& j, ShapeNode& n, TreeParts& tree) {
+  parse_boolean(j, n, tree, ShapeType::kSubtraction);
+}
+
+// inside: the complement of "shape" (a container), parsed one level deeper.
+void parse_inside(const JsonIn& j, ShapeNode& n, TreeParts& tree) {
+  j.only({"type", "transform", "shape"});
+  n.type = ShapeType::kInside;
+  const uint32_t kid = tree.parse_child(j.object("shape"));
+  n.first = static_cast<uint32_t>(tree.children.size());
+  n.count = 1;
+  tree.children.push_back(kid);
+}
+
+/// The parser of each shape type, keyed by its "type" name (in the order the unknown-type
+/// error lists them).
+struct ShapeParserEntry {
+  std::string_view type;
+  ShapeParser parse;
+};
+constexpr std::array<ShapeParserEntry, 12> kShapeParsers = {{
+    {"circle", parse_circle},
+    {"box", parse_box},
+    {"rounded_box", parse_rounded_box},
+    {"capsule", parse_capsule},
+    {"tapered_capsule", parse_tapered_capsule},
+    {"polygon", parse_polygon},
+    {"arc", parse_arc},
+    {"half_plane", parse_half_plane},
+    {"union", parse_union},
+    {"intersection", parse_intersection},
+    {"subtraction", parse_subtraction},
+    {"inside", parse_inside},
+}};
+
+// The parser for `type`, or none.
+ShapeParser find_shape_parser(std::string_view type) {
+  for (const ShapeParserEntry& e : kShapeParsers)
+    if (e.type == type) return e.parse;
+  return nullptr;
+}
+
+// "a, b, c": the known shape types, for the unknown-type error.
+std::string shape_type_names() {
+  std::string names;
+  for (const ShapeParserEntry& e : kShapeParsers)
+    names += (names.empty() ? "" : ", ") + std::string(e.type);
+  return names;
+}
+
 }  // namespace
 
 ShapeTree ShapeTree::parse(const JsonIn& j) {
@@ -56,161 +292,13 @@ uint32_t ShapeTree::parse_node(const JsonIn& j, int depth) {
   if (depth > kMaxDepth) j.fail("", "shapes nested deeper than 32 levels");
   const std::string type = j.string("type");
   ShapeNode n;
-  auto pos = [](double x) { return x > 0.0; };
-  auto nonneg = [](double x) { return x >= 0.0; };
-
-  if (j.has("transform")) {
-    const JsonIn tr = j.object("transform");
-    tr.only({"translate", "rotate"});
-    n.transformed = true;
-    n.tt = tr.vec2("translate", Vec2(0.0, 0.0));
-    const double a = tr.number("rotate", 0.0);
-    n.tc = std::cos(a);
-    n.ts = std::sin(a);
-  }
-
-  if (type == "circle") {
-    j.only({"type", "transform", "center", "radius"});
-    n.type = ShapeType::kCircle;  // evaluated as a rounded box of half size 0
-    n.c = j.vec2("center");
-    n.r0 = j.number_if("radius", pos, "must be > 0");
-  } else if (type == "box" || type == "rounded_box") {
-    const bool rounded = type == "rounded_box";
-    if (rounded)
-      j.only({"type", "transform", "center", "half_size", "angle", "corner_radius"});
-    else
-      j.only({"type", "transform", "center", "half_size", "angle"});
-    n.type = rounded ? ShapeType::kRoundedBox : ShapeType::kBox;
-    n.c = j.vec2("center");
-    const Vec2 h = j.vec2("half_size");
-    if (!(h.x() > 0.0 && h.y() > 0.0))
-      j.fail("half_size",
-             "both components must be > 0, got " + JsonIn::show(j.json()["half_size"]));
-    const double a = j.number("angle", 0.0);
-    n.ca = std::cos(a);
-    n.sa = std::sin(a);
-    if (rounded) {
-      const double cr = j.number("corner_radius");
-      if (!(cr >= 0.0 && cr <= std::min(h.x(), h.y())))
-        j.fail("corner_radius", "must be in [0, min(half_size)] = [0, " +
-                                    std::to_string(std::min(h.x(), h.y())) + "], got " +
-                                    JsonIn::show(j.json()["corner_radius"]));
-      n.r0 = cr;
-      n.b = h - Vec2(cr, cr);
-    } else {
-      n.b = h;
-    }
-  } else if (type == "capsule") {
-    j.only({"type", "transform", "a", "b", "radius"});
-    // evaluated as a rounded box of half size (|b - a| / 2, 0) about the midpoint, rotated
-    // to the axis: the distance to the segment, minus the radius
-    n.type = ShapeType::kCapsule;
-    const Vec2 a = j.vec2("a"), ab = j.vec2("b") - a;
-    n.r0 = j.number_if("radius", nonneg, "must be >= 0");
-    const double len = ab.norm();
-    n.c = a + 0.5 * ab;
-    n.b = Vec2(0.5 * len, 0.0);
-    if (len > 0.0) {
-      n.ca = ab.x() / len;
-      n.sa = ab.y() / len;
-    }
-  } else if (type == "tapered_capsule") {
-    j.only({"type", "transform", "a", "b", "radius_a", "radius_b"});
-    n.type = ShapeType::kTaperedCapsule;
-    n.c = j.vec2("a");
-    const Vec2 ab = j.vec2("b") - n.c;
-    n.r0 = j.number_if("radius_a", nonneg, "must be >= 0");
-    n.r1 = j.number_if("radius_b", nonneg, "must be >= 0");
-    n.h = ab.norm();
-    if (!(std::abs(n.r0 - n.r1) < n.h))
-      j.fail("b", "need |radius_a - radius_b| < |b - a| (one disc may not contain the other)");
-    n.b = ab / n.h;                       // axis (local +y)
-    n.k0 = (n.r0 - n.r1) / n.h;           // iq's b
-    n.k1 = std::sqrt(1.0 - n.k0 * n.k0);  // iq's a
-  } else if (type == "polygon") {
-    j.only({"type", "transform", "points"});
-    n.type = ShapeType::kPolygon;
-    const auto& pts = j.array("points");
-    if (pts.size() < 3)
-      j.fail("points", "need at least 3 points, got " + std::to_string(pts.size()));
-    std::vector<Vec2> v;
-    for (std::size_t i = 0; i < pts.size(); ++i) {
-      if (!JsonIn::is_vec2(pts[i]))
-        j.fail("points[" + std::to_string(i) + "]", "expected [x, y], got " + JsonIn::show(pts[i]));
-      v.emplace_back(pts[i][0].get<double>(), pts[i][1].get<double>());
-    }
-    double area2 = 0.0;
-    for (std::size_t i = 0; i < v.size(); ++i) area2 += cross(v[i], v[(i + 1) % v.size()]);
-    if (!(std::abs(area2) > 0.0)) j.fail("points", "polygon has zero area");
-    const std::size_t m = v.size();
-    for (std::size_t i = 0; i < m; ++i) {
-      if (v[i] == v[(i + 1) % m])
-        j.fail("points[" + std::to_string(i) + "]", "repeats the next point");
-      for (std::size_t k = i + 2; k < m; ++k) {
-        if (i == 0 && k == m - 1) continue;  // adjacent through the wrap
-        if (segments_touch(v[i], v[(i + 1) % m], v[k], v[(k + 1) % m]))
-          j.fail("points", "polygon is not simple: edge " + std::to_string(i) + " touches edge " +
-                               std::to_string(k));
-      }
-    }
-    if (area2 < 0.0) std::reverse(v.begin(), v.end());  // counter-clockwise from here on
-    n.first = static_cast<uint32_t>(verts_.size());
-    n.count = static_cast<uint32_t>(m);
-    verts_.insert(verts_.end(), v.begin(), v.end());
-  } else if (type == "arc") {
-    j.only({"type", "transform", "center", "radius", "start_angle", "end_angle", "thickness"});
-    n.type = ShapeType::kArc;
-    n.c = j.vec2("center");
-    n.r0 = j.number_if("radius", pos, "must be > 0");
-    n.r1 = 0.5 * j.number_if("thickness", pos, "must be > 0");
-    const double a0 = j.number("start_angle");
-    const double a1 = j.number("end_angle");
-    const double sweep = a1 - a0;
-    if (!(sweep > 0.0 && sweep <= 2.0 * std::numbers::pi + 1e-12))
-      j.fail("end_angle",
-             "end_angle - start_angle must be in (0, 2 pi], got " + std::to_string(sweep));
-    const double mid = a0 + 0.5 * sweep;
-    n.ca = std::cos(mid);  // local +y is the middle direction
-    n.sa = std::sin(mid);
-    n.k0 = std::sin(0.5 * std::min(sweep, 2.0 * std::numbers::pi));
-    n.k1 = std::cos(0.5 * std::min(sweep, 2.0 * std::numbers::pi));
-  } else if (type == "half_plane") {
-    j.only({"type", "transform", "point", "normal"});
-    n.type = ShapeType::kHalfPlane;
-    n.c = j.vec2("point");
-    const Vec2 nn = j.vec2("normal");
-    if (!(nn.norm() > 0.0)) j.fail("normal", "must be non-zero");
-    n.b = nn / nn.norm();
-  } else if (type == "union" || type == "intersection" || type == "subtraction") {
-    j.only({"type", "transform", "shapes"});
-    n.type = type == "union"          ? ShapeType::kUnion
-             : type == "intersection" ? ShapeType::kIntersection
-                                      : ShapeType::kSubtraction;
-    const auto& arr = j.array("shapes");
-    const std::size_t need = n.type == ShapeType::kSubtraction ? 2 : 1;
-    if (arr.size() < need)
-      j.fail("shapes", "need at least " + std::to_string(need) + " shapes, got " +
-                           std::to_string(arr.size()));
-    std::vector<uint32_t> kids;
-    for (std::size_t i = 0; i < arr.size(); ++i)
-      kids.push_back(parse_node(JsonIn(arr[i], j.at("shapes[" + std::to_string(i) + "]"), j.ctx()),
-                                depth + 1));
-    n.first = static_cast<uint32_t>(children_.size());
-    n.count = static_cast<uint32_t>(kids.size());
-    children_.insert(children_.end(), kids.begin(), kids.end());
-  } else if (type == "inside") {
-    j.only({"type", "transform", "shape"});
-    n.type = ShapeType::kInside;
-    const uint32_t kid = parse_node(j.object("shape"), depth + 1);
-    n.first = static_cast<uint32_t>(children_.size());
-    n.count = 1;
-    children_.push_back(kid);
-  } else {
-    j.fail("type",
-           "unknown shape type '" + type +
-               "' (expected circle, box, rounded_box, capsule, tapered_capsule, polygon, arc, "
-               "half_plane, union, intersection, subtraction, inside)");
-  }
+  if (j.has("transform")) read_transform(j.object("transform"), n);
+  const ShapeParser parse = find_shape_parser(type);
+  if (!parse)
+    j.fail("type", "unknown shape type '" + type + "' (expected " + shape_type_names() + ")");
+  TreeParts tree{verts_, children_,
+                 [this, depth](const JsonIn& child) { return parse_node(child, depth + 1); }};
+  parse(j, n, tree);
   nodes_.push_back(n);
   return static_cast<uint32_t>(nodes_.size() - 1);
 }
