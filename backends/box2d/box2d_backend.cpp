@@ -35,6 +35,190 @@ std::string num(double x) {
   return o.str();
 }
 
+/// The scene's "contacts" object.
+struct ContactOptions {
+  bool particles = false;    ///< particle-particle contacts on
+  double restitution = 1.0;  ///< their restitution
+};
+
+// "contacts": {"particles", "restitution" in [0, 1]}, if the scene has it.
+ContactOptions read_contacts(const CreateContext& ctx) {
+  ContactOptions out;
+  if (ctx.scene.is_object() && ctx.scene.contains("contacts") && !ctx.scene["contacts"].is_null()) {
+    const sdf::JsonIn scene(ctx.scene, "", ctx.context);
+    const sdf::JsonIn c = scene.object("contacts");
+    c.only({"particles", "restitution"});
+    out.particles = c.boolean("particles", false);
+    out.restitution = c.number_if(
+        "restitution", 1.0, [](double x) { return x >= 0.0 && x <= 1.0; }, "must be in [0, 1]");
+  }
+  return out;
+}
+
+// Length scale: Box2D 2.4.1 is tuned for moving objects of 0.1 to 10 units (slop
+// 0.005, translation cap 2 units per step). `requested` if > 0, else the smallest particle
+// radius becomes 1 unit, shrunk so that the largest moving body (a particle's diameter, a
+// flipper's reach) is at most 10 units. Every particle needs a radius > 0.
+double choose_length_scale(const CreateContext& ctx, const sdf::ObstacleField& field,
+                           double requested) {
+  const std::size_t n = ctx.initial.n;
+  double r_min = HUGE_VAL, size_max = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double r = ctx.initial.radius[static_cast<Eigen::Index>(i)];
+    if (!(r > 0.0))
+      throw Error(ctx.context + ": particles[" + std::to_string(i) +
+                  "].radius: the box2d backend needs a radius > 0 (Box2D circles), got " + num(r));
+    r_min = std::min(r_min, r);
+    size_max = std::max(size_max, 2.0 * r);
+  }
+  for (uint32_t k : field.moving()) size_max = std::max(size_max, field.obstacle(k).reach);
+  double scale = requested;
+  if (scale == 0.0) {
+    scale = n > 0 ? 1.0 / r_min : 1.0;
+    if (size_max > 0.0) scale = std::min(scale, 10.0 / size_max);
+  }
+  return scale;
+}
+
+// Half-plane edges: centred on the particles' mean initial position (the origin without
+// particles), long enough to cover the scene many times over.
+BuildOptions build_options(const CreateContext& ctx, double s) {
+  const std::size_t n = ctx.initial.n;
+  Vec2 centre(0.0, 0.0);
+  for (std::size_t i = 0; i < n; ++i) centre += ctx.initial.x.col(static_cast<Eigen::Index>(i));
+  if (n > 0) centre /= static_cast<double>(n);
+  BuildOptions bo;
+  bo.curve_segments = static_cast<int>(ctx.params.integer("curve_segments"));
+  bo.centre = centre;
+  bo.half_plane_extent = 1000.0 / s;  // 1000 Box2D units each way
+  return bo;
+}
+
+// True if any obstacle has friction (then particles may spin).
+bool any_friction(const sdf::ObstacleField& field) {
+  bool friction = false;
+  for (std::size_t k = 0; k < field.size(); ++k)
+    friction = friction || field.obstacle(k).material.friction > 0.0;
+  return friction;
+}
+
+// An obstacle's body: static, or kinematic in its pose at t = 0 for flippers (angle about
+// the pivot) and sliders (offset).
+b2BodyDef obstacle_body_def(const sdf::Obstacle& o, double s) {
+  b2BodyDef bd;
+  if (o.motion == sdf::MotionType::kFlipper) {
+    bd.type = b2_kinematicBody;
+    bd.position = to_b2(o.pivot, s);
+    bd.angle = static_cast<float>(o.timeline->value(0.0));
+  } else if (o.motion == sdf::MotionType::kSlider) {
+    bd.type = b2_kinematicBody;
+    bd.position = to_b2(o.timeline->value(0.0) * o.offset, s);
+  }
+  return bd;
+}
+
+/// A piece of obstacle k's shape on its way into Box2D: its body, fixture settings, the
+/// length scale and, for errors, where it comes from.
+struct PieceTarget {
+  b2Body* body;
+  b2FixtureDef fd;  ///< material, threshold and tag; the shape is set per piece
+  double s;         ///< length scale
+  const std::string& context;
+  const std::string& path;  ///< obstacles[k]
+  const std::string& id;    ///< the obstacle's id
+};
+
+// Throws if an edge of v (with the closing edge if `closed`) is not longer than Box2D's
+// weld distance at the length scale; `what` names the piece.
+void check_edges(const PieceTarget& t, const std::vector<Vec2>& v, bool closed, const char* what) {
+  const double weld = 0.5 * b2_linearSlop;
+  for (std::size_t q = 0; q + (closed ? 0 : 1) < v.size(); ++q)
+    if ((v[(q + 1) % v.size()] - v[q]).norm() * t.s <= 2.0 * weld)
+      throw Error(t.context + ": " + t.path + ".shape: unsupported by box2d (obstacle '" + t.id +
+                  "'): " + what + " has an edge shorter than Box2D's weld distance " +
+                  num(2.0 * weld / t.s) + " at length scale " + num(t.s));
+}
+
+// Attaches a fixture of `shape` to the target's body.
+void attach(PieceTarget& t, const b2Shape& shape) {
+  t.fd.shape = &shape;
+  t.body->CreateFixture(&t.fd);
+}
+
+// A circle piece.
+void add_circle(PieceTarget& t, const Piece& pc) {
+  b2CircleShape c;
+  c.m_p = to_b2(pc.v[0], t.s);
+  c.m_radius = static_cast<float>(pc.radius * t.s);
+  attach(t, c);
+}
+
+// A convex polygon piece (at most b2_maxPolygonVertices points).
+void add_polygon(PieceTarget& t, const Piece& pc) {
+  check_edges(t, pc.v, true, "a polygon piece");
+  b2Vec2 v[b2_maxPolygonVertices];
+  for (std::size_t q = 0; q < pc.v.size(); ++q) v[q] = to_b2(pc.v[q], t.s);
+  b2PolygonShape poly;
+  poly.Set(v, static_cast<int32>(pc.v.size()));
+  // Skin: Box2D inflates polygons by b2_polygonRadius = 0.01 units so that polygon
+  // cores never touch. Only circles move here and obstacles never collide with each
+  // other, so the radius is set to the shape's own rounding (0 for plain polygons):
+  // the surface sits exactly where the SDF has it.
+  poly.m_radius = static_cast<float>(pc.radius * t.s);
+  attach(t, poly);
+}
+
+// A segment piece (a capsule if it has a radius); one-sided ones get ghost vertices that
+// continue it straight on both ends.
+void add_edge(PieceTarget& t, const Piece& pc) {
+  check_edges(t, pc.v, false, "a segment");
+  b2EdgeShape e;
+  const b2Vec2 a = to_b2(pc.v[0], t.s), b = to_b2(pc.v[1], t.s);
+  if (pc.one_sided) {
+    const b2Vec2 d = b - a;
+    e.SetOneSided(a - d, a, b, b + d);
+  } else {
+    e.SetTwoSided(a, b);
+  }
+  e.m_radius = static_cast<float>(pc.radius * t.s);  // capsule radius (skin: see add_polygon)
+  attach(t, e);
+}
+
+// A container wall: a closed chain, or an open one with the piece's ghost vertices.
+void add_chain(PieceTarget& t, const Piece& pc) {
+  const bool loop = pc.kind == Piece::Kind::kChainLoop;
+  check_edges(t, pc.v, loop, "a container wall");
+  std::vector<b2Vec2> v;
+  for (const Vec2& q : pc.v) v.push_back(to_b2(q, t.s));
+  b2ChainShape ch;
+  if (loop)
+    ch.CreateLoop(v.data(), static_cast<int32>(v.size()));
+  else
+    ch.CreateChain(v.data(), static_cast<int32>(v.size()), to_b2(pc.ghost0, t.s),
+                   to_b2(pc.ghost1, t.s));
+  ch.m_radius = 0.0f;
+  attach(t, ch);
+}
+
+// One fixture for a piece, by its kind.
+void add_piece(PieceTarget& t, const Piece& pc) {
+  switch (pc.kind) {
+    case Piece::Kind::kCircle:
+      add_circle(t, pc);
+      break;
+    case Piece::Kind::kPolygon:
+      add_polygon(t, pc);
+      break;
+    case Piece::Kind::kEdge:
+      add_edge(t, pc);
+      break;
+    case Piece::Kind::kChainLoop:
+    case Piece::Kind::kChain:
+      add_chain(t, pc);
+      break;
+  }
+}
+
 }  // namespace
 
 PluginInfo Box2dBackend::info() {
@@ -87,150 +271,59 @@ Box2dBackend::Box2dBackend(const CreateContext& ctx) {
   // The sdf backend's parser validates the whole obstacle format (same errors, same paths)
   // and provides the scripted motion timelines.
   field_ = sdf::ObstacleField(ctx.scene, ctx.context, {}, 0);
-  if (ctx.scene.is_object() && ctx.scene.contains("contacts") && !ctx.scene["contacts"].is_null()) {
-    const sdf::JsonIn scene(ctx.scene, "", ctx.context);
-    const sdf::JsonIn c = scene.object("contacts");
-    c.only({"particles", "restitution"});
-    particle_contacts_ = c.boolean("particles", false);
-    particle_e_ = c.number_if(
-        "restitution", 1.0, [](double x) { return x >= 0.0 && x <= 1.0; }, "must be in [0, 1]");
-  }
-
-  // Length scale: Box2D 2.4.1 is tuned for moving objects of 0.1 to 10 units (slop
-  // 0.005, translation cap 2 units per step).
-  const std::size_t n = ctx.initial.n;
-  double r_min = HUGE_VAL, size_max = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double r = ctx.initial.radius[static_cast<Eigen::Index>(i)];
-    if (!(r > 0.0))
-      throw Error(ctx.context + ": particles[" + std::to_string(i) +
-                  "].radius: the box2d backend needs a radius > 0 (Box2D circles), got " + num(r));
-    r_min = std::min(r_min, r);
-    size_max = std::max(size_max, 2.0 * r);
-  }
-  for (uint32_t k : field_.moving()) size_max = std::max(size_max, field_.obstacle(k).reach);
-  scale_ = p.real("length_scale");
-  if (scale_ == 0.0) {
-    scale_ = n > 0 ? 1.0 / r_min : 1.0;
-    if (size_max > 0.0) scale_ = std::min(scale_, 10.0 / size_max);
-  }
-
+  const ContactOptions contacts = read_contacts(ctx);
+  particle_contacts_ = contacts.particles;
+  particle_e_ = contacts.restitution;
+  scale_ = choose_length_scale(ctx, field_, p.real("length_scale"));
+  // A world without gravity or sleeping; the listener records contacts.
   world_ = std::make_unique<b2World>(b2Vec2(0.0f, 0.0f));
   world_->SetAllowSleeping(false);
   world_->SetContinuousPhysics(true);
   listener_ = std::make_unique<Listener>(this);
   world_->SetContactListener(listener_.get());
+  // Obstacles, then particles; Box2D units from here on.
+  const float threshold = static_cast<float>(rest_speed_ * scale_);
+  add_obstacles(ctx, threshold);
+  add_particles(ctx, any_friction(field_), threshold);
+  const std::size_t n = ctx.initial.n;
+  touched_.assign(n, 0);
+  track_t_.assign(n, 0.0);
+  track_x_.assign(n, b2Vec2(0.0f, 0.0f));
+}
 
-  bool friction = false;
+// Obstacles: one body each, with a fixture per convex piece of its shape; fixtures are
+// tagged with the obstacle's index.
+void Box2dBackend::add_obstacles(const CreateContext& ctx, float threshold) {
   const double s = scale_;
-  const float threshold = static_cast<float>(rest_speed_ * s);
   const auto& obs_json =
       ctx.scene.contains("obstacles") ? ctx.scene["obstacles"] : nlohmann::json::array();
-  // Half-plane edges: centred on the scene, long enough to cover it many times over.
-  Vec2 centre(0.0, 0.0);
-  for (std::size_t i = 0; i < n; ++i) centre += ctx.initial.x.col(static_cast<Eigen::Index>(i));
-  if (n > 0) centre /= static_cast<double>(n);
-  BuildOptions bo;
-  bo.curve_segments = static_cast<int>(p.integer("curve_segments"));
-  bo.centre = centre;
-  bo.half_plane_extent = 1000.0 / s;  // 1000 Box2D units each way
+  const BuildOptions bo = build_options(ctx, s);
   for (std::size_t k = 0; k < field_.size(); ++k) {
     const sdf::Obstacle& o = field_.obstacle(k);
     const std::string path = "obstacles[" + std::to_string(k) + "]";
-    friction = friction || o.material.friction > 0.0;
-    b2BodyDef bd;
-    if (o.motion == sdf::MotionType::kFlipper) {
-      bd.type = b2_kinematicBody;
-      bd.position = to_b2(o.pivot, s);
-      bd.angle = static_cast<float>(o.timeline->value(0.0));
-    } else if (o.motion == sdf::MotionType::kSlider) {
-      bd.type = b2_kinematicBody;
-      bd.position = to_b2(o.timeline->value(0.0) * o.offset, s);
-    }
+    const b2BodyDef bd = obstacle_body_def(o, s);
     b2Body* body = world_->CreateBody(&bd);
     obstacle_body_.push_back(body);
     tags_.push_back({-1, static_cast<int64_t>(k)});
-    b2FixtureDef fd;
-    fd.friction = static_cast<float>(o.material.friction);
-    fd.restitution = static_cast<float>(o.material.restitution);
-    fd.restitutionThreshold = threshold;
-    fd.density = 0.0f;
-    fd.userData.pointer = tags_.size();  // tag index + 1
+    PieceTarget target{body, b2FixtureDef(), s, ctx.context, path, o.id};
+    target.fd.friction = static_cast<float>(o.material.friction);
+    target.fd.restitution = static_cast<float>(o.material.restitution);
+    target.fd.restitutionThreshold = threshold;
+    target.fd.density = 0.0f;
+    target.fd.userData.pointer = tags_.size();  // tag index + 1
     const std::vector<Piece> pieces =
         build_pieces(obs_json[k]["shape"], ctx.context, path + ".shape", o.id, bo);
-    const double weld = 0.5 * b2_linearSlop;
-    auto too_small = [&](const std::vector<Vec2>& v, bool closed) {
-      for (std::size_t q = 0; q + (closed ? 0 : 1) < v.size(); ++q)
-        if ((v[(q + 1) % v.size()] - v[q]).norm() * s <= 2.0 * weld) return true;
-      return false;
-    };
-    auto small_error = [&](const char* what) {
-      throw Error(ctx.context + ": " + path + ".shape: unsupported by box2d (obstacle '" + o.id +
-                  "'): " + what + " has an edge shorter than Box2D's weld distance " +
-                  num(2.0 * weld / s) + " at length scale " + num(s));
-    };
-    for (const Piece& pc : pieces) {
-      switch (pc.kind) {
-        case Piece::Kind::kCircle: {
-          b2CircleShape c;
-          c.m_p = to_b2(pc.v[0], s);
-          c.m_radius = static_cast<float>(pc.radius * s);
-          fd.shape = &c;
-          body->CreateFixture(&fd);
-          break;
-        }
-        case Piece::Kind::kPolygon: {
-          if (too_small(pc.v, true)) small_error("a polygon piece");
-          b2Vec2 v[b2_maxPolygonVertices];
-          for (std::size_t q = 0; q < pc.v.size(); ++q) v[q] = to_b2(pc.v[q], s);
-          b2PolygonShape poly;
-          poly.Set(v, static_cast<int32>(pc.v.size()));
-          // Skin: Box2D inflates polygons by b2_polygonRadius = 0.01 units so that polygon
-          // cores never touch. Only circles move here and obstacles never collide with each
-          // other, so the radius is set to the shape's own rounding (0 for plain polygons):
-          // the surface sits exactly where the SDF has it.
-          poly.m_radius = static_cast<float>(pc.radius * s);
-          fd.shape = &poly;
-          body->CreateFixture(&fd);
-          break;
-        }
-        case Piece::Kind::kEdge: {
-          if (too_small(pc.v, false)) small_error("a segment");
-          b2EdgeShape e;
-          const b2Vec2 a = to_b2(pc.v[0], s), b = to_b2(pc.v[1], s);
-          if (pc.one_sided) {
-            const b2Vec2 d = b - a;
-            e.SetOneSided(a - d, a, b, b + d);
-          } else {
-            e.SetTwoSided(a, b);
-          }
-          e.m_radius = static_cast<float>(pc.radius * s);  // capsule radius (skin: see above)
-          fd.shape = &e;
-          body->CreateFixture(&fd);
-          break;
-        }
-        case Piece::Kind::kChainLoop:
-        case Piece::Kind::kChain: {
-          if (too_small(pc.v, pc.kind == Piece::Kind::kChainLoop)) small_error("a container wall");
-          std::vector<b2Vec2> v;
-          for (const Vec2& q : pc.v) v.push_back(to_b2(q, s));
-          b2ChainShape ch;
-          if (pc.kind == Piece::Kind::kChainLoop)
-            ch.CreateLoop(v.data(), static_cast<int32>(v.size()));
-          else
-            ch.CreateChain(v.data(), static_cast<int32>(v.size()), to_b2(pc.ghost0, s),
-                           to_b2(pc.ghost1, s));
-          ch.m_radius = 0.0f;
-          fd.shape = &ch;
-          body->CreateFixture(&fd);
-          break;
-        }
-      }
-    }
+    for (const Piece& pc : pieces) add_piece(target, pc);
     obstacle_fixtures_.push_back(pieces.size());
   }
+}
 
-  for (std::size_t i = 0; i < n; ++i) {
+// Particles: circle bodies (static if pinned) whose density gives the particle's mass;
+// they pass through each other unless particle contacts are on, and spin only if some
+// obstacle has friction.
+void Box2dBackend::add_particles(const CreateContext& ctx, bool friction, float threshold) {
+  const double s = scale_;
+  for (std::size_t i = 0; i < ctx.initial.n; ++i) {
     const auto ii = static_cast<Eigen::Index>(i);
     const double w = ctx.initial.inv_mass[ii];
     const double r = ctx.initial.radius[ii];
@@ -258,9 +351,6 @@ Box2dBackend::Box2dBackend(const CreateContext& ctx) {
     particle_body_.push_back(body);
     last_x_.push_back(ctx.initial.x.col(ii));
   }
-  touched_.assign(n, 0);
-  track_t_.assign(n, 0.0);
-  track_x_.assign(n, b2Vec2(0.0f, 0.0f));
 }
 
 Box2dBackend::~Box2dBackend() = default;

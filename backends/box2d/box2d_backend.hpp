@@ -57,6 +57,10 @@ class Box2dBackend {
 
  private:
   friend class Listener;
+  /// The scene's obstacles as bodies and fixtures (constructor stage).
+  void add_obstacles(const CreateContext& ctx, float threshold);
+  /// The particles as circle bodies (constructor stage).
+  void add_particles(const CreateContext& ctx, bool friction, float threshold);
   void on_presolve(b2Contact* c);
   void close_events_of(int64_t particle);
   double vn_now(const Pending& p) const;
