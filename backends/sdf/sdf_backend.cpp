@@ -72,7 +72,6 @@ SdfBackend::SdfBackend(const CreateContext& ctx) {
   }
   speed_bound_.assign(field_.size(), 0.0);
   timeline_hint_.assign(field_.size(), 0);
-  still_segments_.assign(field_.size(), 0);
 }
 
 double SdfBackend::distance(const Vec2& p, double t, int64_t* obstacle) const {
@@ -92,7 +91,7 @@ double SdfBackend::distance(const Vec2& p, double t, int64_t* obstacle) const {
 // otherwise the particle moves on by at most max(d, depth_min), which cannot take it deeper
 // than depth_min inside the surface.
 bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
-                       EventSink& ev, Probe* probe) {
+                       EventSink& ev, RestProbe* probe) {
   double remaining = dur;
   const auto& moving = field_.moving();
   bool first = true;
@@ -337,132 +336,77 @@ void SdfBackend::schedule_pairs(const MutableState& s, double dt, EventSink& ev)
   }
 }
 
-namespace {
-
-SdfStats operator-(const SdfStats& a, const SdfStats& b) {
-  return {a.particle_steps - b.particle_steps,
-          a.skipped - b.skipped,
-          a.queries - b.queries,
-          a.contacts - b.contacts,
-          a.pair_contacts - b.pair_contacts,
-          a.cap_hits - b.cap_hits,
-          a.replays - b.replays};
-}
-void add(SdfStats& a, const SdfStats& b) {
-  a.particle_steps += b.particle_steps;
-  a.skipped += b.skipped;
-  a.queries += b.queries;
-  a.contacts += b.contacts;
-  a.pair_contacts += b.pair_contacts;
-  a.cap_hits += b.cap_hits;
-  a.replays += b.replays;
-}
-bool same(const Vec2& a, const Vec2& b) { return a.x() == b.x() && a.y() == b.y(); }
-
-}  // namespace
-
-// A replayed step must compute exactly what the march would. The march's result depends on
-// time only through moving obstacles: their distance in nearest() and their speed in the
-// Lipschitz bound. For every moving obstacle k, lower_bound(k, .) is 1-Lipschitz and time
-// independent, so at every point the recorded step queried (within `reach` of x_in)
-//   lower_bound(k, x_in) - reach - depth_min >= d_max   => nearest() skips k there, and
-//   ... - r - depth_min > (speed + U_k) dt                => k adds nothing to the bound
-// (depth_min is a margin against rounding, far above it).
-// A ball resting on a moving obstacle that stands still (a raised flipper, a stopped
-// plunger) cannot pass that test. Instead: in a step where no moving obstacle moves
-// (every speed bound over the step 0), each obstacle's distance, gradient and velocity (0)
-// come from its standing timeline segment and do not depend on the time, so the march is
-// a pure function of its input and of those segments. A record made in such a step is
-// replayed only in a step of the same still epoch (the same segments, nothing moving).
-bool SdfBackend::far_from_moving(const Rest& m) const {
+// Speed bounds of the moving obstacles over the step (each timeline keeps its segment as a
+// hint); the rest cache learns whether they all stand still and in which segments.
+bool SdfBackend::bound_moving_obstacles(double t0, double dt) {
+  bool still = true;
   for (uint32_t k : field_.moving()) {
-    const double lb = field_.lower_bound(k, m.x_in) - m.reach - delta_;
-    if (!(lb > 0.0 && lb >= m.d_max)) return false;
-    const double uk = speed_bound_[k];
-    if (uk > 0.0 && !(lb - m.r - delta_ > (m.speed + uk) * m.dt)) return false;
+    speed_bound_[k] = field_.speed_bound(k, t0, t0 + dt, timeline_hint_[k]);
+    still = still && speed_bound_[k] == 0.0;
   }
-  return true;
+  return still;
+}
+
+// The march between the pair contacts' velocity changes, one budget for the whole step.
+void SdfBackend::march_with_changes(std::size_t i, Vec2& x, Vec2& v, double r, double t0, double dt,
+                                    EventSink& ev) {
+  ++stats_.particle_steps;
+  Budget b;
+  double done = 0.0;
+  for (const Change& c : changes_[i]) {
+    march(i, x, v, r, t0 + done, c.tau - done, b, ev);
+    v += c.dv;
+    done = c.tau;
+  }
+  march(i, x, v, r, t0 + done, dt - done, b, ev);
+}
+
+// At rest, with an input seen before and the same obstacles in reach: the same output and
+// counters as the recorded step. Otherwise the march, with a probe of what it looked at; a
+// step that ended at rest on static obstacles, or while nothing moves, is recorded.
+void SdfBackend::march_or_replay(std::size_t i, Vec2& x, Vec2& v, double r, double t0, double dt,
+                                 EventSink& ev) {
+  const RestRecord* hit = rest_.find(i, x, v, r, dt);
+  if (hit != nullptr && rest_.replayable(*hit, field_, speed_bound_, delta_)) {
+    add(stats_, hit->delta);
+    ++stats_.replays;
+    x = hit->x_out;
+    v = hit->v_out;
+    return;
+  }
+  const Vec2 x_in = x, v_in = v;
+  const SdfStats before = stats_;
+  ++stats_.particle_steps;
+  RestProbe probe;
+  probe.x0 = x;
+  Budget b;
+  march(i, x, v, r, t0, dt, b, ev, &probe);
+  if (probe.at_rest && (probe.static_only || rest_.still()))
+    rest_.store(i, hit,
+                {x_in, v_in, x, v, r, dt, std::sqrt(probe.reach), probe.d_max, probe.speed,
+                 stats_ - before, rest_.epoch(), !probe.static_only});
+  else
+    rest_.forget(i);
 }
 
 void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   if (!(dt > 0.0)) return;
   const double t0 = s.t;
-  bool still = true, same_segments = still_;
-  for (uint32_t k : field_.moving()) {
-    speed_bound_[k] = field_.speed_bound(k, t0, t0 + dt, timeline_hint_[k]);
-    still = still && speed_bound_[k] == 0.0;
-    same_segments = same_segments && still_segments_[k] == timeline_hint_[k];
-    still_segments_[k] = timeline_hint_[k];
-  }
-  if (!(still && same_segments)) ++still_epoch_;
-  still_ = still;
+  // The obstacles' motion over the step, then the pair contacts within it.
+  const bool still = bound_moving_obstacles(t0, dt);
+  rest_.begin_step(still, field_.moving(), timeline_hint_);
   const bool pairs = particle_contacts_ && s.n > 1;
   if (pairs) schedule_pairs(s, dt, ev);
-  if (rest_valid_.size() != s.n) {
-    rest_valid_.assign(s.n, 0);
-    rest_next_.assign(s.n, 0);
-    rest_.resize(s.n * kRestSlots);
-  }
+  // Each particle with finite mass along its path, contacts resolved on the way.
+  rest_.resize(s.n);
   for (std::size_t i = 0; i < s.n; ++i) {
     if (!(s.inv_mass[i] > 0.0)) continue;  // pinned particles do not move
     Vec2 x = s.x.col(i), v = s.v.col(i);
     const double r = s.radius[i];
-    if (pairs) {
-      ++stats_.particle_steps;
-      Budget b;
-      double done = 0.0;
-      for (const Change& c : changes_[i]) {
-        march(i, x, v, r, t0 + done, c.tau - done, b, ev);
-        v += c.dv;
-        done = c.tau;
-      }
-      march(i, x, v, r, t0 + done, dt - done, b, ev);
-    } else {
-      const Rest* hit = nullptr;
-      for (std::size_t j = 0; j < kRestSlots && rest_valid_[i] >> j; ++j) {
-        const Rest& m = rest_[i * kRestSlots + j];
-        if ((rest_valid_[i] >> j & 1) && same(x, m.x_in) && same(v, m.v_in) && r == m.r &&
-            dt == m.dt) {
-          hit = &m;
-          break;
-        }
-      }
-      if (hit != nullptr &&
-          (hit->in_epoch ? still_ && hit->epoch == still_epoch_ : far_from_moving(*hit))) {
-        // at rest, with an input seen before and the same obstacles in reach: the same output
-        add(stats_, hit->delta);
-        ++stats_.replays;
-        s.x.col(i) = hit->x_out;
-        s.v.col(i) = hit->v_out;
-        continue;
-      }
-      const SdfStats before = stats_;
-      ++stats_.particle_steps;
-      Probe probe;
-      probe.x0 = x;
-      Budget b;
-      march(i, x, v, r, t0, dt, b, ev, &probe);
-      if (probe.at_rest && (probe.static_only || still_)) {
-        const std::size_t j =
-            hit != nullptr ? static_cast<std::size_t>(hit - &rest_[i * kRestSlots]) : rest_next_[i];
-        if (hit == nullptr) rest_next_[i] = static_cast<uint8_t>((j + 1) % kRestSlots);
-        rest_[i * kRestSlots + j] = {s.x.col(i),
-                                     s.v.col(i),
-                                     x,
-                                     v,
-                                     r,
-                                     dt,
-                                     std::sqrt(probe.reach),
-                                     probe.d_max,
-                                     probe.speed,
-                                     stats_ - before,
-                                     still_epoch_,
-                                     !probe.static_only};
-        rest_valid_[i] = static_cast<uint8_t>(rest_valid_[i] | 1u << j);
-      } else {
-        rest_valid_[i] = 0;
-      }
-    }
+    if (pairs)
+      march_with_changes(i, x, v, r, t0, dt, ev);
+    else
+      march_or_replay(i, x, v, r, t0, dt, ev);
     s.x.col(i) = x;
     s.v.col(i) = v;
   }

@@ -8,19 +8,10 @@
 #include <vector>
 
 #include "obstacle_field.hpp"
+#include "rest_cache.hpp"
+#include "sdf_stats.hpp"
 
 namespace pinsim::sdf {
-
-/// Counters since construction (for tests, benchmarks and the README's figures).
-struct SdfStats {
-  uint64_t particle_steps = 0;  ///< particles advanced
-  uint64_t skipped = 0;         ///< advanced by one query: clearance exceeded the travel
-  uint64_t queries = 0;         ///< nearest-obstacle queries
-  uint64_t contacts = 0;        ///< obstacle impulses (including resting contacts)
-  uint64_t pair_contacts = 0;   ///< particle-particle impulses
-  uint64_t cap_hits = 0;        ///< steps that hit max_collisions or max_iterations
-  uint64_t replays = 0;  ///< particle steps at rest repeated from the previous result (README)
-};
 
 class SdfBackend {
  public:
@@ -47,35 +38,21 @@ class SdfBackend {
     double tau;  ///< time into the step, s
     Vec2 dv;     ///< velocity change
   };
-  /// What a march looked at, to decide whether its result can be replayed (see README).
-  struct Probe {
-    Vec2 x0{0.0, 0.0};        ///< start point
-    double reach = 0.0;       ///< farthest query point from x0
-    double d_max = 0.0;       ///< largest nearest distance returned
-    double speed = 0.0;       ///< largest speed at a query
-    bool static_only = true;  ///< every query's nearest obstacle static, no moving one near
-    bool at_rest = false;     ///< ended at rest after one resting contact, no event
-  };
-  /// A particle step that ended at rest: the same input gives the same output as long as
-  /// no moving obstacle can come near (a record on static obstacles), or as long as every
-  /// moving obstacle stands still in the pose it had (a record in a still epoch).
-  struct Rest {
-    Vec2 x_in, v_in, x_out, v_out;
-    double r = 0.0, dt = 0.0;
-    double reach = 0.0, d_max = 0.0, speed = 0.0;
-    SdfStats delta;         ///< counters the step added
-    uint64_t epoch = 0;     ///< still_epoch_ of the step, if it relied on one
-    bool in_epoch = false;  ///< a moving obstacle was near: valid only in that epoch
-  };
   /// Moves particle i from (x, v) at time t over `dur`; false if the caps stopped it early.
   bool march(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
-             EventSink& ev, Probe* probe = nullptr);
+             EventSink& ev, RestProbe* probe = nullptr);
   /// Step along a sliding contact with static obstacle k (see sdf_backend.cpp), 0 if none.
   double slide_step(std::size_t k, const Vec2& x, const Vec2& v, double r, double remaining,
                     double lip) const;
-  /// True if no moving obstacle can reach the points a Rest record's step queried, in the
-  /// step now being taken, so the record can be replayed.
-  bool far_from_moving(const Rest& m) const;
+  /// Speed bounds of the moving obstacles over [t0, t0 + dt]; true if none moves.
+  bool bound_moving_obstacles(double t0, double dt);
+  /// Particle i through the step with the velocity changes of its pair contacts.
+  void march_with_changes(std::size_t i, Vec2& x, Vec2& v, double r, double t0, double dt,
+                          EventSink& ev);
+  /// Particle i through the step without pair contacts: replayed from the rest cache when
+  /// it can be, else marched (and remembered if it ended at rest).
+  void march_or_replay(std::size_t i, Vec2& x, Vec2& v, double r, double t0, double dt,
+                       EventSink& ev);
   /// Particle-particle contacts within the step: fills changes_ (see README).
   void schedule_pairs(const MutableState& s, double dt, EventSink& ev);
 
@@ -89,20 +66,8 @@ class SdfBackend {
   double particle_e_ = 1.0;
   std::vector<double> speed_bound_;         ///< per obstacle, this step
   std::vector<std::size_t> timeline_hint_;  ///< per obstacle: its timeline's segment last step
-  /// Still epochs: a run of steps in which no moving obstacle moves, each in one pose (the
-  /// same timeline segments, hence the same angle or position and its cos/sin, to the bit).
-  /// still_ is true in such a step; still_epoch_ numbers the run and changes whenever a
-  /// step moves or the segments change, so equal numbers mean equal poses.
-  bool still_ = false;
-  uint64_t still_epoch_ = 0;
-  std::vector<std::size_t> still_segments_;
   std::vector<std::vector<Change>> changes_;
-  /// Rest records per particle: a resting ball's position may cycle through a few values
-  /// (rounding of the push back to the contact offset), so a few are kept.
-  static constexpr std::size_t kRestSlots = 4;
-  std::vector<Rest> rest_;           ///< kRestSlots per particle
-  std::vector<uint8_t> rest_valid_;  ///< per particle: bit j set if slot j holds a record
-  std::vector<uint8_t> rest_next_;   ///< per particle: the slot to fill next
+  RestCache rest_;  ///< particle steps that ended at rest
   SdfStats stats_;
 };
 
