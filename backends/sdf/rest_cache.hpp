@@ -36,10 +36,13 @@ struct RestRecord {
 
 class RestCache {
  public:
-  /// Starts a step: `still` if no moving obstacle moves in it; `segments` holds each
-  /// obstacle's timeline segment for the step (read for the `moving` ones).
-  void begin_step(bool still, const std::vector<uint32_t>& moving,
-                  const std::vector<std::size_t>& segments);
+  /// Starts a step: `still` if no moving obstacle moves in it, `same_segments` if every
+  /// moving obstacle's timeline is in the segment it was in the step before. A new still
+  /// epoch begins unless this step and the one before are still in the same segments.
+  void begin_step(bool still, bool same_segments) {
+    if (!(still && still_ && same_segments)) ++still_epoch_;
+    still_ = still;
+  }
   /// True if no moving obstacle moves in this step.
   bool still() const { return still_; }
   /// The current still epoch (equal numbers mean equal poses of the moving obstacles).
@@ -75,8 +78,31 @@ class RestCache {
 
  private:
   static bool same(const Vec2& a, const Vec2& b) { return a.x() == b.x() && a.y() == b.y(); }
-  bool far_from_moving(const RestRecord& m, const ObstacleField& field,
-                       const std::vector<double>& speed_bound, double depth_min) const;
+
+  // True if no moving obstacle can reach the points m's step queried, in this step.
+  // A replayed step must compute exactly what the march would. The march's result depends on
+  // time only through moving obstacles: their distance in nearest() and their speed in the
+  // Lipschitz bound. For every moving obstacle k, lower_bound(k, .) is 1-Lipschitz and time
+  // independent, so at every point the recorded step queried (within `reach` of x_in)
+  //   lower_bound(k, x_in) - reach - depth_min >= d_max   => nearest() skips k there, and
+  //   ... - r - depth_min > (speed + U_k) dt                => k adds nothing to the bound
+  // (depth_min is a margin against rounding, far above it).
+  // A ball resting on a moving obstacle that stands still (a raised flipper, a stopped
+  // plunger) cannot pass that test. Instead: in a step where no moving obstacle moves
+  // (every speed bound over the step 0), each obstacle's distance, gradient and velocity (0)
+  // come from its standing timeline segment and do not depend on the time, so the march is
+  // a pure function of its input and of those segments. A record made in such a step is
+  // replayed only in a step of the same still epoch (the same segments, nothing moving).
+  static bool far_from_moving(const RestRecord& m, const ObstacleField& field,
+                              const std::vector<double>& speed_bound, double depth_min) {
+    for (uint32_t k : field.moving()) {
+      const double lb = field.lower_bound(k, m.x_in) - m.reach - depth_min;
+      if (!(lb > 0.0 && lb >= m.d_max)) return false;
+      const double uk = speed_bound[k];
+      if (uk > 0.0 && !(lb - m.r - depth_min > (m.speed + uk) * m.dt)) return false;
+    }
+    return true;
+  }
 
   /// Still epochs: a run of steps in which no moving obstacle moves, each in one pose (the
   /// same timeline segments, hence the same angle or position and its cos/sin, to the bit).
@@ -84,7 +110,6 @@ class RestCache {
   /// step moves or the segments change, so equal numbers mean equal poses.
   bool still_ = false;
   uint64_t still_epoch_ = 0;
-  std::vector<std::size_t> still_segments_;  ///< per obstacle: its segment last step
   /// Records per particle: a resting ball's position may cycle through a few values
   /// (rounding of the push back to the contact offset), so a few are kept.
   static constexpr std::size_t kSlots = 4;

@@ -72,6 +72,7 @@ SdfBackend::SdfBackend(const CreateContext& ctx) {
   }
   speed_bound_.assign(field_.size(), 0.0);
   timeline_hint_.assign(field_.size(), 0);
+  last_segment_.assign(field_.size(), 0);
 }
 
 double SdfBackend::distance(const Vec2& p, double t, int64_t* obstacle) const {
@@ -337,19 +338,28 @@ void SdfBackend::schedule_pairs(const MutableState& s, double dt, EventSink& ev)
 }
 
 // Speed bounds of the moving obstacles over the step (each timeline keeps its segment as a
-// hint); the rest cache learns whether they all stand still and in which segments.
-bool SdfBackend::bound_moving_obstacles(double t0, double dt) {
-  bool still = true;
+// hint), whether none moves, and whether each stays in the segment of the step before.
+// This and the two stages below are always inlined into advance, which runs them once per
+// step or once per particle step.
+[[gnu::always_inline]] inline SdfBackend::ObstacleMotion SdfBackend::bound_moving_obstacles(
+    double t0, double dt) {
+  ObstacleMotion m;
   for (uint32_t k : field_.moving()) {
     speed_bound_[k] = field_.speed_bound(k, t0, t0 + dt, timeline_hint_[k]);
-    still = still && speed_bound_[k] == 0.0;
+    m.still = m.still && speed_bound_[k] == 0.0;
+    m.same_segments = m.same_segments && last_segment_[k] == timeline_hint_[k];
+    last_segment_[k] = timeline_hint_[k];
   }
-  return still;
+  return m;
 }
 
-// The march between the pair contacts' velocity changes, one budget for the whole step.
-void SdfBackend::march_with_changes(std::size_t i, Vec2& x, Vec2& v, double r, double t0, double dt,
-                                    EventSink& ev) {
+// Particle i over the step, marched between its pair contacts' velocity changes with one
+// budget for the whole step.
+[[gnu::always_inline]] inline void SdfBackend::march_with_changes(std::size_t i, MutableState& s,
+                                                                  double t0, double dt,
+                                                                  EventSink& ev) {
+  Vec2 x = s.x.col(i), v = s.v.col(i);
+  const double r = s.radius[i];
   ++stats_.particle_steps;
   Budget b;
   double done = 0.0;
@@ -359,22 +369,27 @@ void SdfBackend::march_with_changes(std::size_t i, Vec2& x, Vec2& v, double r, d
     done = c.tau;
   }
   march(i, x, v, r, t0 + done, dt - done, b, ev);
+  s.x.col(i) = x;
+  s.v.col(i) = v;
 }
 
-// At rest, with an input seen before and the same obstacles in reach: the same output and
-// counters as the recorded step. Otherwise the march, with a probe of what it looked at; a
-// step that ended at rest on static obstacles, or while nothing moves, is recorded.
-void SdfBackend::march_or_replay(std::size_t i, Vec2& x, Vec2& v, double r, double t0, double dt,
-                                 EventSink& ev) {
+// Particle i over the step without pair contacts. At rest, with an input seen before and
+// the same obstacles in reach: the same output and counters as the recorded step.
+// Otherwise the march, with a probe of what it looked at; a step that ended at rest on
+// static obstacles, or while nothing moves, is recorded.
+[[gnu::always_inline]] inline void SdfBackend::march_or_replay(std::size_t i, MutableState& s,
+                                                               double t0, double dt,
+                                                               EventSink& ev) {
+  Vec2 x = s.x.col(i), v = s.v.col(i);
+  const double r = s.radius[i];
   const RestRecord* hit = rest_.find(i, x, v, r, dt);
   if (hit != nullptr && rest_.replayable(*hit, field_, speed_bound_, delta_)) {
     add(stats_, hit->delta);
     ++stats_.replays;
-    x = hit->x_out;
-    v = hit->v_out;
+    s.x.col(i) = hit->x_out;
+    s.v.col(i) = hit->v_out;
     return;
   }
-  const Vec2 x_in = x, v_in = v;
   const SdfStats before = stats_;
   ++stats_.particle_steps;
   RestProbe probe;
@@ -383,32 +398,30 @@ void SdfBackend::march_or_replay(std::size_t i, Vec2& x, Vec2& v, double r, doub
   march(i, x, v, r, t0, dt, b, ev, &probe);
   if (probe.at_rest && (probe.static_only || rest_.still()))
     rest_.store(i, hit,
-                {x_in, v_in, x, v, r, dt, std::sqrt(probe.reach), probe.d_max, probe.speed,
-                 stats_ - before, rest_.epoch(), !probe.static_only});
+                {s.x.col(i), s.v.col(i), x, v, r, dt, std::sqrt(probe.reach), probe.d_max,
+                 probe.speed, stats_ - before, rest_.epoch(), !probe.static_only});
   else
     rest_.forget(i);
+  s.x.col(i) = x;
+  s.v.col(i) = v;
 }
 
 void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   if (!(dt > 0.0)) return;
   const double t0 = s.t;
   // The obstacles' motion over the step, then the pair contacts within it.
-  const bool still = bound_moving_obstacles(t0, dt);
-  rest_.begin_step(still, field_.moving(), timeline_hint_);
+  const ObstacleMotion motion = bound_moving_obstacles(t0, dt);
+  rest_.begin_step(motion.still, motion.same_segments);
   const bool pairs = particle_contacts_ && s.n > 1;
   if (pairs) schedule_pairs(s, dt, ev);
   // Each particle with finite mass along its path, contacts resolved on the way.
   rest_.resize(s.n);
   for (std::size_t i = 0; i < s.n; ++i) {
     if (!(s.inv_mass[i] > 0.0)) continue;  // pinned particles do not move
-    Vec2 x = s.x.col(i), v = s.v.col(i);
-    const double r = s.radius[i];
     if (pairs)
-      march_with_changes(i, x, v, r, t0, dt, ev);
+      march_with_changes(i, s, t0, dt, ev);
     else
-      march_or_replay(i, x, v, r, t0, dt, ev);
-    s.x.col(i) = x;
-    s.v.col(i) = v;
+      march_or_replay(i, s, t0, dt, ev);
   }
 }
 

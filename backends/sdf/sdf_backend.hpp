@@ -44,15 +44,18 @@ class SdfBackend {
   /// Step along a sliding contact with static obstacle k (see sdf_backend.cpp), 0 if none.
   double slide_step(std::size_t k, const Vec2& x, const Vec2& v, double r, double remaining,
                     double lip) const;
-  /// Speed bounds of the moving obstacles over [t0, t0 + dt]; true if none moves.
-  bool bound_moving_obstacles(double t0, double dt);
-  /// Particle i through the step with the velocity changes of its pair contacts.
-  void march_with_changes(std::size_t i, Vec2& x, Vec2& v, double r, double t0, double dt,
-                          EventSink& ev);
-  /// Particle i through the step without pair contacts: replayed from the rest cache when
-  /// it can be, else marched (and remembered if it ended at rest).
-  void march_or_replay(std::size_t i, Vec2& x, Vec2& v, double r, double t0, double dt,
-                       EventSink& ev);
+  /// What the moving obstacles do over a step.
+  struct ObstacleMotion {
+    bool still = true;          ///< none moves (every speed bound 0)
+    bool same_segments = true;  ///< every timeline is in the segment of the step before
+  };
+  /// Speed bounds of the moving obstacles over [t0, t0 + dt], and their motion.
+  ObstacleMotion bound_moving_obstacles(double t0, double dt);
+  /// Particle i of s through the step with the velocity changes of its pair contacts.
+  void march_with_changes(std::size_t i, MutableState& s, double t0, double dt, EventSink& ev);
+  /// Particle i of s through the step without pair contacts: replayed from the rest cache
+  /// when it can be, else marched (and remembered if it ended at rest).
+  void march_or_replay(std::size_t i, MutableState& s, double t0, double dt, EventSink& ev);
   /// Particle-particle contacts within the step: fills changes_ (see README).
   void schedule_pairs(const MutableState& s, double dt, EventSink& ev);
 
@@ -66,6 +69,7 @@ class SdfBackend {
   double particle_e_ = 1.0;
   std::vector<double> speed_bound_;         ///< per obstacle, this step
   std::vector<std::size_t> timeline_hint_;  ///< per obstacle: its timeline's segment last step
+  std::vector<std::size_t> last_segment_;   ///< per obstacle: its segment the step before
   std::vector<std::vector<Change>> changes_;
   RestCache rest_;  ///< particle steps that ended at rest
   SdfStats stats_;
