@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "core/simulation.hpp"
+#include "pictures/cairo_handles.hpp"
 #include "pictures/render_field.hpp"
 
 namespace pinsim {
@@ -27,11 +28,6 @@ void particle_colour(std::size_t run, std::size_t particle, double rgb[3]) {
 }
 
 namespace {
-
-struct CairoDeleter {
-  void operator()(cairo_surface_t* s) const { cairo_surface_destroy(s); }
-  void operator()(cairo_t* c) const { cairo_destroy(c); }
-};
 
 void label(cairo_t* cr, double x, double y, const std::string& text, double size) {
   cairo_select_font_face(cr, "sans-serif", CAIRO_FONT_SLANT_NORMAL, CAIRO_FONT_WEIGHT_NORMAL);
@@ -52,7 +48,7 @@ std::string fmt_time(double t) {
   return buf;
 }
 
-using Surface = std::unique_ptr<cairo_surface_t, CairoDeleter>;
+using Surface = CairoSurface;
 
 /// Where and how large particles are drawn: radii from the scene, positions from the first
 /// run at time t, else the scene's initial state.
@@ -281,7 +277,7 @@ PixelMap render_picture(const RenderJob& job, PluginLoader& loader, const Render
   const ParticleLayout particles(job, map, t);
   // The layers from the bottom up, on a light background.
   Surface surface = create_surface(out, svg, map);
-  std::unique_ptr<cairo_t, CairoDeleter> ctx(cairo_create(surface.get()));
+  const CairoContext ctx = cairo_context(surface.get());
   cairo_t* cr = ctx.get();
   cairo_set_source_rgb(cr, 0.97, 0.95, 0.90);
   cairo_paint(cr);
