@@ -277,7 +277,7 @@ PixelMap render_picture(const RenderJob& job, PluginLoader& loader, const Render
   const ParticleLayout particles(job, map, t);
   // The layers from the bottom up, on a light background.
   Surface surface = create_surface(out, svg, map);
-  const CairoContext ctx = cairo_context(surface.get());
+  CairoContext ctx = cairo_context(surface.get());
   cairo_t* cr = ctx.get();
   cairo_set_source_rgb(cr, 0.97, 0.95, 0.90);
   cairo_paint(cr);
