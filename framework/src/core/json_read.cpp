@@ -1,6 +1,9 @@
 #include "core/json_read.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <set>
+#include <vector>
 
 namespace pinsim {
 
@@ -75,25 +78,156 @@ uint64_t read_count_or(const nlohmann::json& obj, const char* key, uint64_t def,
   return v.get<uint64_t>();
 }
 
-nlohmann::json parse_json_text(const std::string& text, const std::string& label) {
-  try {
-    return nlohmann::json::parse(text, nullptr, true, /*ignore_comments=*/true);
-  } catch (const nlohmann::json::parse_error& e) {
-    // Turn the byte offset into line:column.
-    std::size_t line = 1, col = 1;
-    for (std::size_t i = 0; i + 1 < e.byte && i < text.size(); ++i) {
-      if (text[i] == '\n') {
-        ++line;
-        col = 1;
-      } else {
-        ++col;
+namespace {
+
+/// "line:column" of a byte offset (1-based, as editors count).
+std::string line_col(const std::string& text, std::size_t byte) {
+  std::size_t line = 1, col = 1;
+  for (std::size_t i = 0; i + 1 < byte && i < text.size(); ++i) {
+    if (text[i] == '\n') {
+      ++line;
+      col = 1;
+    } else {
+      ++col;
+    }
+  }
+  return std::to_string(line) + ":" + std::to_string(col);
+}
+
+/// Builds the document through nlohmann's own DOM builder, refusing duplicate keys and
+/// nesting deeper than the limit as they are met, and keeping the JSON path of the value
+/// being read for messages.
+class StrictSax : public nlohmann::json_sax<nlohmann::json> {
+ public:
+  StrictSax(nlohmann::json& out, std::size_t max_depth) : dom_(out, true), max_depth_(max_depth) {}
+
+  bool null() override { return value() && dom_.null(); }
+  bool boolean(bool v) override { return value() && dom_.boolean(v); }
+  bool number_integer(number_integer_t v) override { return value() && dom_.number_integer(v); }
+  bool number_unsigned(number_unsigned_t v) override { return value() && dom_.number_unsigned(v); }
+  bool number_float(number_float_t v, const string_t& s) override {
+    return value() && dom_.number_float(v, s);
+  }
+  bool string(string_t& v) override { return value() && dom_.string(v); }
+  bool binary(binary_t& v) override { return value() && dom_.binary(v); }
+  bool start_object(std::size_t n) override {
+    if (!value() || !open(true)) return false;
+    return dom_.start_object(n);
+  }
+  bool key(string_t& k) override {
+    Frame& f = frames_.back();
+    if (!f.keys.insert(k).second) {
+      f.key = k;
+      problem_ = "duplicate key \"" + k + "\" (each key may appear once)";
+      return false;
+    }
+    f.key = k;
+    return dom_.key(k);
+  }
+  bool end_object() override {
+    frames_.pop_back();
+    return dom_.end_object();
+  }
+  bool start_array(std::size_t n) override {
+    if (!value() || !open(false)) return false;
+    return dom_.start_array(n);
+  }
+  bool end_array() override {
+    frames_.pop_back();
+    return dom_.end_array();
+  }
+  bool parse_error(std::size_t pos, const std::string& token,
+                   const nlohmann::detail::exception& e) override {
+    error_pos_ = pos;
+    error_token_ = token;
+    error_id_ = e.id;
+    error_ = e.what();
+    return false;
+  }
+
+  const std::string& problem() const { return problem_; }
+  std::size_t error_pos() const { return error_pos_; }
+  /// The token the error is about (its last byte is at error_pos()).
+  const std::string& error_token() const { return error_token_; }
+  int error_id() const { return error_id_; }
+  const std::string& error() const { return error_; }
+  /// The JSON path of the value being read: "forces[2].params.k".
+  std::string path() const {
+    std::string p;
+    for (const Frame& f : frames_) {
+      if (f.object) {
+        if (!f.key.empty()) p += (p.empty() ? "" : ".") + f.key;
+      } else if (f.index > 0) {
+        p += "[" + std::to_string(f.index - 1) + "]";
       }
     }
-    std::string what = e.what();
-    if (auto p = what.find("syntax error"); p != std::string::npos) what = what.substr(p);
-    throw SceneError(label + ":" + std::to_string(line) + ":" + std::to_string(col) +
-                     ": malformed JSON: " + what);
+    return p;
   }
+
+ private:
+  struct Frame {
+    bool object;
+    std::size_t index = 0;  ///< arrays: values seen (the current one is index - 1)
+    std::string key;
+    std::set<std::string> keys;
+  };
+  /// A value begins: count it in its array.
+  bool value() {
+    if (!frames_.empty() && !frames_.back().object) ++frames_.back().index;
+    return true;
+  }
+  bool open(bool object) {
+    if (frames_.size() >= max_depth_) {
+      problem_ = "nested deeper than " + std::to_string(max_depth_) +
+                 " levels of arrays and objects (the limit)";
+      return false;
+    }
+    frames_.push_back(Frame{object, 0, {}, {}});
+    return true;
+  }
+
+  nlohmann::detail::json_sax_dom_parser<nlohmann::json> dom_;
+  std::size_t max_depth_;
+  std::vector<Frame> frames_;
+  std::string problem_, error_, error_token_;
+  std::size_t error_pos_ = 0;
+  int error_id_ = 0;
+};
+
+}  // namespace
+
+nlohmann::json parse_json_text(const std::string& text, const std::string& label,
+                               const JsonLimits& limits) {
+  if (text.size() > limits.max_bytes)
+    throw SceneError(label + ": " + std::to_string(text.size()) +
+                     " bytes, larger than the limit of " + std::to_string(limits.max_bytes) +
+                     " bytes for a JSON file");
+  nlohmann::json out;
+  StrictSax sax(out, limits.max_depth);
+  bool ok = false;
+  try {
+    ok = nlohmann::json::sax_parse(text, &sax, nlohmann::json::input_format_t::json, true,
+                                   /*ignore_comments=*/true);
+  } catch (const nlohmann::json::exception& e) {
+    throw JsonSyntaxError(label + ": malformed JSON: " + e.what());
+  }
+  if (ok) return out;
+  if (!sax.problem().empty()) {
+    const std::string path = sax.path();
+    throw SceneError(label + ": " + (path.empty() ? "(top level)" : path) + ": " + sax.problem());
+  }
+  std::string what = sax.error();
+  const std::string where = label + ":" + line_col(text, sax.error_pos()) + ": ";
+  if (sax.error_id() == 406) {
+    // out_of_range.406: a number literal beyond a double's range (about 1.8e308); the
+    // position given is the literal's last byte, the message names where it starts.
+    const std::string& lit = sax.error_token();
+    const std::size_t start = sax.error_pos() + 1 - std::min(sax.error_pos(), lit.size());
+    throw SceneError(label + ":" + line_col(text, start) + ": number " + lit +
+                     " is out of range: a double holds magnitudes up to 1.8e308");
+  }
+  if (auto p = what.find("syntax error"); p != std::string::npos) what = what.substr(p);
+  throw JsonSyntaxError(where + "malformed JSON: " + what);
 }
 
 }  // namespace pinsim

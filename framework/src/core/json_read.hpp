@@ -44,7 +44,25 @@ bool read_bool_or(const nlohmann::json& obj, const char* key, bool def, const Lo
 /// A non-negative integer.
 uint64_t read_count_or(const nlohmann::json& obj, const char* key, uint64_t def, const Loc& at);
 
-/// Parses JSON text with comments allowed; a syntax error names file:line:column.
-nlohmann::json parse_json_text(const std::string& text, const std::string& label);
+/// Text that is not JSON at all (a syntax error), as opposed to JSON that breaks a rule
+/// (a duplicate key, too deep, a number out of range), which is a plain SceneError.
+class JsonSyntaxError : public SceneError {
+ public:
+  using SceneError::SceneError;
+};
+
+/// Limits of parse_json_text (documented in README's Scenes section).
+struct JsonLimits {
+  std::size_t max_depth = 256;         ///< nesting of arrays and objects
+  std::size_t max_bytes = 256u << 20;  ///< size of the text
+};
+
+/// Parses JSON text with comments allowed, strictly: a syntax error or a number beyond a
+/// double's range names file:line:column; a duplicate key, or nesting deeper than
+/// limits.max_depth, names file and JSON path. Nesting is limited while parsing, before
+/// anything recursive (copy, dump, destruction) can meet it. Throws JsonSyntaxError for
+/// text that is not JSON, SceneError for the rest.
+nlohmann::json parse_json_text(const std::string& text, const std::string& label,
+                               const JsonLimits& limits = {});
 
 }  // namespace pinsim

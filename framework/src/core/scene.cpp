@@ -190,8 +190,8 @@ void apply_override(nlohmann::json& doc, const std::string& assignment, const st
   const std::string text = assignment.substr(eq + 1);
   nlohmann::json value;
   try {
-    value = nlohmann::json::parse(text);
-  } catch (const nlohmann::json::parse_error&) {
+    value = parse_json_text(text, "--set " + path + "=");
+  } catch (const JsonSyntaxError&) {
     value = text;  // a bare word is a string
   }
   const auto keys = split_path(path);
@@ -202,10 +202,11 @@ void apply_override(nlohmann::json& doc, const std::string& assignment, const st
     const std::string& key = keys[k];
     const bool last = k + 1 == keys.size();
     if (cur->is_array()) {
-      if (!is_index(key) || std::stoul(key) >= cur->size())
+      // (more than 18 digits cannot be an index of any array here, nor fit stoull)
+      if (!is_index(key) || key.size() > 18 || std::stoull(key) >= cur->size())
         throw SceneError(label + ": --set " + path + ": " + walked + " has " +
                          std::to_string(cur->size()) + " entries, no index '" + key + "'");
-      cur = &(*cur)[std::stoul(key)];
+      cur = &(*cur)[std::stoull(key)];
       walked += "[" + key + "]";
     } else if (cur->is_object() || cur->is_null()) {
       if (cur->is_null()) *cur = nlohmann::json::object();
@@ -239,7 +240,10 @@ State Scene::initial_state() const {
 }
 
 std::string Scene::obstacle_id(int64_t index) const {
-  const auto& obs = backend_scene.value("obstacles", nlohmann::json::array());
+  // Called for every event: look the array up in place (json::value would copy it).
+  const auto it = backend_scene.is_object() ? backend_scene.find("obstacles") : backend_scene.end();
+  if (it == backend_scene.end() || !it->is_array()) return "";
+  const auto& obs = *it;
   if (index < 0 || static_cast<std::size_t>(index) >= obs.size()) return "";
   const auto& o = obs[static_cast<std::size_t>(index)];
   if (o.is_object() && o.contains("id") && o["id"].is_string()) return o["id"].get<std::string>();

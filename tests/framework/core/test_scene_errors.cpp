@@ -161,3 +161,44 @@ TEST_CASE("scene errors: whole-body forces name the set and what they need") {
   REQUIRE_THROWS_WITH(build({"forces[0].elements=[[0, 1]]"}, text),
                       Contains("bad.json: forces[0]: element 0 has 2 particle(s)"));
 }
+
+TEST_CASE("scene errors: nesting deeper than the limit is refused while parsing") {
+  // 100,000 levels used to overflow the stack in recursive copies and dumps (SIGSEGV).
+  for (const std::size_t depth : {257u, 100000u}) {
+    CAPTURE(depth);
+    const std::string deep = std::string(depth, '[') + std::string(depth, ']');
+    const std::string text =
+        R"({"time": {"dt": 0.01, "duration": 1}, "particles": [], "x": )" + deep + "}";
+    REQUIRE_THROWS_WITH(build({}, text),
+                        Contains("bad.json: x") && Contains("nested deeper than 256 levels"));
+  }
+  // 256 levels are fine as JSON (and then refused for the unknown key, not the depth).
+  const std::string ok = std::string(255, '[') + std::string(255, ']');
+  REQUIRE_THROWS_WITH(build({}, R"({"time": {"dt": 0.01, "duration": 1},
+                                  "particles": [{"x": [0, 0]}], "x": )" +
+                                    ok + "}"),
+                      Contains("bad.json: x: unknown key"));
+  // Through --set too.
+  REQUIRE_THROWS_WITH(build({"x=" + std::string(300, '[') + std::string(300, ']')}),
+                      Contains("nested deeper than 256 levels"));
+}
+
+TEST_CASE("scene errors: a duplicate key is refused, naming its path") {
+  REQUIRE_THROWS_WITH(build({}, R"({"time": {"dt": 0.01, "dt": 0.02, "duration": 1}})"),
+                      Contains("bad.json: time.dt: duplicate key \"dt\""));
+  REQUIRE_THROWS_WITH(build({}, R"({"time": {"dt": 0.01, "duration": 1},
+                   "particles": [{"x": [0, 0]}, {"x": [1, 0], "mass": 1, "mass": 2}]})"),
+                      Contains("bad.json: particles[1].mass: duplicate key \"mass\""));
+}
+
+TEST_CASE("scene errors: a number beyond a double's range names file, line and column") {
+  REQUIRE_THROWS_WITH(build({}, "{\"time\": {\"dt\": 0.01,\n  \"duration\": 1e400}}"),
+                      Contains("bad.json:2:15") && Contains("number 1e400 is out of range"));
+  REQUIRE_THROWS_WITH(build({"time.dt=1e999"}),
+                      Contains("--set time.dt=") && Contains("number 1e999 is out of range"));
+}
+
+TEST_CASE("scene errors: --set with an index too large for any array") {
+  REQUIRE_THROWS_WITH(build({"particles[99999999999999999999].x=1"}),
+                      Contains("particles has 1 entries, no index '99999999999999999999'"));
+}
