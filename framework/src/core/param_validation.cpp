@@ -4,6 +4,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/format.hpp"
 #include "core/scene_error.hpp"
 
 namespace pinsim {
@@ -26,20 +27,14 @@ std::string type_name(uint32_t t) {
   }
 }
 
-std::string fmt(double v) {
-  std::ostringstream o;
-  o << v;
-  return o.str();
-}
-
 void check_range(const pinsim_param& p, double v, const std::string& at) {
-  if (!std::isfinite(v)) throw SceneError(at + ": must be a finite number, got " + fmt(v));
+  if (!std::isfinite(v)) throw SceneError(at + ": must be a finite number, got " + num(v));
   const bool lo_x = p.flags & PINSIM_PARAM_MIN_EXCLUSIVE;
   const bool hi_x = p.flags & PINSIM_PARAM_MAX_EXCLUSIVE;
   if (lo_x ? !(v > p.min) : !(v >= p.min))
-    throw SceneError(at + ": must be " + (lo_x ? "> " : ">= ") + fmt(p.min) + ", got " + fmt(v));
+    throw SceneError(at + ": must be " + (lo_x ? "> " : ">= ") + num(p.min) + ", got " + num(v));
   if (hi_x ? !(v < p.max) : !(v <= p.max))
-    throw SceneError(at + ": must be " + (hi_x ? "< " : "<= ") + fmt(p.max) + ", got " + fmt(v));
+    throw SceneError(at + ": must be " + (hi_x ? "< " : "<= ") + num(p.max) + ", got " + num(v));
 }
 
 nlohmann::json check_value(const pinsim_param& p, const nlohmann::json& v, const std::string& at) {
@@ -164,10 +159,10 @@ std::string format_param_table(const pinsim_plugin& plugin) {
     o << (p.flags & PINSIM_PARAM_REQUIRED ? std::string("(required)") : default_value(p).dump());
     std::string range;
     if (std::isfinite(p.min))
-      range += std::string(p.flags & PINSIM_PARAM_MIN_EXCLUSIVE ? "> " : ">= ") + fmt(p.min);
+      range += std::string(p.flags & PINSIM_PARAM_MIN_EXCLUSIVE ? "> " : ">= ") + num(p.min);
     if (std::isfinite(p.max))
       range += std::string(range.empty() ? "" : ", ") +
-               (p.flags & PINSIM_PARAM_MAX_EXCLUSIVE ? "< " : "<= ") + fmt(p.max);
+               (p.flags & PINSIM_PARAM_MAX_EXCLUSIVE ? "< " : "<= ") + num(p.max);
     if (p.choices) range = std::string("one of ") + p.choices;
     if (!range.empty()) o << "  range " << range;
     o << "  [" << p.units << "]  " << p.doc << "\n";

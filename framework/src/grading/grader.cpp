@@ -7,6 +7,7 @@
 #include <map>
 #include <memory>
 
+#include "core/format.hpp"
 #include "grading/remote_plugin.hpp"
 #include "grading/results.hpp"
 #include "grading/submission.hpp"
@@ -24,12 +25,6 @@ using grading::WorkerFault;
 
 double now() {
   return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
-
-std::string secs(double s) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", s);
-  return buf;
 }
 
 /// One plugin's sandboxed worker, reused by that plugin's tests until it fails.
@@ -69,7 +64,7 @@ class Grading {
     if (!prep.problem.empty()) return {false, prep.problem};
     if (now() - start_ > rubric_.time_budget_seconds)
       return {false, "not run: the submission used up its time budget of " +
-                         secs(rubric_.time_budget_seconds) + " s"};
+                         num(rubric_.time_budget_seconds) + " s"};
     PluginWorker& pw = workers_[t.plugin];
     if (!pw.fatal.empty()) return {false, pw.fatal};
     if (!pw.worker || pw.worker->fault() != WorkerFault::None) {

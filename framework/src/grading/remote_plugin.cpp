@@ -16,6 +16,8 @@
 #include <nlohmann/json.hpp>
 #include <vector>
 
+#include "core/format.hpp"
+
 namespace pinsim::grading {
 namespace {
 
@@ -354,9 +356,7 @@ void RemoteWorker::fail(WorkerFault fault, const std::string& why, Op op) {
     failure_ = how.empty() ? "exited (status 0) in the middle of the test, during " + failed_op_
                            : how + ", during " + failed_op_;
   } else if (fault == WorkerFault::TimedOut) {
-    char limit[32];
-    std::snprintf(limit, sizeof limit, "%g", limits_.wall_seconds);
-    failure_ = "did not finish within the wall-clock limit of " + std::string(limit) +
+    failure_ = "did not finish within the wall-clock limit of " + num(limits_.wall_seconds) +
                " s (an infinite loop, a deadlock " + "or a sleep?), during " + failed_op_ +
                ", and was killed";
   } else {

@@ -8,6 +8,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/format.hpp"
 #include "grading/text.hpp"
 
 namespace fs = std::filesystem;
@@ -85,10 +86,10 @@ std::string junit_xml(const nlohmann::json& results, const std::string& suite) {
   for (const auto& t : results["tests"]) failures += str(t, "status") != "passed";
   x << "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuite name=\"" << xml_escape(suite)
     << "\" tests=\"" << results["tests"].size() << "\" failures=\"" << failures << "\" time=\""
-    << number(results, "execution_time") << "\">\n";
+    << num(number(results, "execution_time")) << "\">\n";
   for (const auto& t : results["tests"]) {
     x << "  <testcase name=\"" << xml_escape(str(t, "name")) << "\" time=\""
-      << number(t, "execution_time") << "\"";
+      << num(number(t, "execution_time")) << "\"";
     if (str(t, "status") == "passed") {
       x << "/>\n";
     } else {
@@ -104,13 +105,13 @@ std::string summary_text(const nlohmann::json& results, const std::string& rubri
   std::ostringstream s;
   int passed = 0;
   for (const auto& t : results["tests"]) passed += str(t, "status") == "passed";
-  s << sanitize_text(rubric_name) << ": " << number(results, "score") << " / "
-    << number(results, "max_score") << " points, " << passed << " of " << results["tests"].size()
-    << " tests passed\n";
+  s << sanitize_text(rubric_name) << ": " << num(number(results, "score")) << " / "
+    << num(number(results, "max_score")) << " points, " << passed << " of "
+    << results["tests"].size() << " tests passed\n";
   for (const auto& t : results["tests"]) {
     s << "  [" << (str(t, "status") == "passed" ? "pass" : "FAIL") << "] " << str(t, "number")
-      << ". " << sanitize_text(str(t, "name")) << " (" << number(t, "score") << "/"
-      << number(t, "max_score") << ")\n";
+      << ". " << sanitize_text(str(t, "name")) << " (" << num(number(t, "score")) << "/"
+      << num(number(t, "max_score")) << ")\n";
     if (str(t, "status") != "passed") {
       std::istringstream lines(sanitize_text(str(t, "output")));
       for (std::string l; std::getline(lines, l);) s << "        " << l << "\n";

@@ -18,6 +18,7 @@
 #include <filesystem>
 #include <stdexcept>
 
+#include "core/format.hpp"
 #include "grading/text.hpp"
 
 namespace fs = std::filesystem;
@@ -35,12 +36,6 @@ std::string bwrap_program() {
   // The test suite points this at a missing program to prove the grader refuses to grade.
   const char* e = std::getenv("PINSIM_BWRAP");
   return e && *e ? e : "/usr/bin/bwrap";
-}
-
-std::string secs(double s) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%g", s);
-  return buf;
 }
 
 double now() {
@@ -206,22 +201,22 @@ pid_t read_inner_pid(int fd, double timeout) {
 
 std::string StepEnd::failure(const SandboxLimits& limits) const {
   if (timed_out)
-    return "did not finish within the wall-clock limit of " + secs(limits.wall_seconds) +
+    return "did not finish within the wall-clock limit of " + num(limits.wall_seconds) +
            " s (an infinite loop, a deadlock or a sleep?) and was killed";
   int sig = signal;
   // bubblewrap reports a command killed by signal s as exit status 128 + s.
   if (sig == 0 && exited && exit_code > 128 && exit_code < 128 + 65) sig = exit_code - 128;
   if (sig == SIGXCPU || sig == SIGKILL)
-    return "exceeded the CPU-time limit of " + secs(limits.cpu_seconds) + " s and was killed";
+    return "exceeded the CPU-time limit of " + num(limits.cpu_seconds) + " s and was killed";
   if (sig == SIGSEGV) return "crashed with a segmentation fault (SIGSEGV)";
   if (sig == SIGBUS) return "crashed with a bus error (SIGBUS)";
   if (sig == SIGFPE) return "crashed with a floating-point exception (SIGFPE)";
   if (sig == SIGXFSZ)
-    return "wrote a file larger than the limit of " + secs(limits.file_mb) + " MiB (SIGXFSZ)";
+    return "wrote a file larger than the limit of " + num(limits.file_mb) + " MiB (SIGXFSZ)";
   if (sig == SIGABRT)
     return "aborted (SIGABRT): an exception escaped, an assertion failed, or memory ran out "
            "(limit " +
-           secs(limits.memory_mb) + " MiB)";
+           num(limits.memory_mb) + " MiB)";
   if (sig != 0) return std::string("was killed by signal ") + ::strsignal(sig);
   if (exited && exit_code != 0) return "exited with status " + std::to_string(exit_code);
   if (!exited) return "ended abnormally";

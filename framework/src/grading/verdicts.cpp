@@ -2,8 +2,8 @@
 
 #include <cmath>
 #include <random>
-#include <sstream>
 
+#include "core/format.hpp"
 #include "core/param_validation.hpp"
 #include "core/plugin_instance.hpp"
 #include "core/scene.hpp"
@@ -14,13 +14,6 @@ namespace fs = std::filesystem;
 
 namespace pinsim::grading {
 namespace {
-
-std::string num(double v) {
-  std::ostringstream o;
-  o.precision(3);
-  o << v;
-  return o.str();
-}
 
 Verdict check_plugin_test(const LoadedPlugin& p, const RubricTest& t) {
   CheckOptions opt;
@@ -39,8 +32,8 @@ Verdict check_plugin_test(const LoadedPlugin& p, const RubricTest& t) {
     return {false, "the check '" + t.check + "' could not run" + why};
   }
   if (r->status == CheckStatus::Skip) return {false, r->what + ": not checked: " + r->detail};
-  return {r->status == CheckStatus::Pass, r->what + ": worst error " + num(r->worst) +
-                                              " (accepted " + num(r->tolerance) + "); " +
+  return {r->status == CheckStatus::Pass, r->what + ": worst error " + num(r->worst, 3) +
+                                              " (accepted " + num(r->tolerance, 3) + "); " +
                                               r->detail};
 }
 
@@ -111,8 +104,8 @@ Verdict reference_test(const std::shared_ptr<const LoadedPlugin>& sub, const Rub
       if (!std::isfinite(err) || err > worst) {
         worst = std::isfinite(err) ? err : HUGE_VAL;
         where = "state " + std::to_string(k) + ", particle " + std::to_string(i) + ": yours (" +
-                num(f2(0, i)) + ", " + num(f2(1, i)) + "), reference (" + num(f1(0, i)) + ", " +
-                num(f1(1, i)) + ")";
+                num(f2(0, i), 3) + ", " + num(f2(1, i), 3) + "), reference (" + num(f1(0, i), 3) +
+                ", " + num(f1(1, i), 3) + ")";
       }
     }
     if (fr.has_energy() && fs_.has_energy()) {
@@ -120,14 +113,14 @@ Verdict reference_test(const std::shared_ptr<const LoadedPlugin>& sub, const Rub
       const double err = std::abs(e2 - e1) / std::max(1e-12, std::abs(e1));
       if (!std::isfinite(err) || err > worst) {
         worst = std::isfinite(err) ? err : HUGE_VAL;
-        where =
-            "state " + std::to_string(k) + ": energy yours " + num(e2) + ", reference " + num(e1);
+        where = "state " + std::to_string(k) + ": energy yours " + num(e2, 3) + ", reference " +
+                num(e1, 3);
       }
     }
   }
   return {worst <= tol, "agreement with the reference '" + ref_name + "' on " +
                             std::to_string(trials) + " random states: worst relative error " +
-                            num(worst) + " (accepted " + num(tol) + ")" +
+                            num(worst, 3) + " (accepted " + num(tol, 3) + ")" +
                             (where.empty() ? "" : "; worst at " + where)};
 }
 
@@ -164,8 +157,8 @@ Verdict simulation_test(const std::shared_ptr<const LoadedPlugin>& sub, const Ru
   }
   return {worst <= tol, "simulation of " + t.spec.at("scene").get<std::string>() + " (" +
                             std::to_string(base.steps()) + " steps): largest position difference " +
-                            num(worst) + " from the reference, at step " +
-                            std::to_string(worst_step) + " (accepted " + num(tol) + ")"};
+                            num(worst, 3) + " from the reference, at step " +
+                            std::to_string(worst_step) + " (accepted " + num(tol, 3) + ")"};
 }
 
 /// Not scored: the same scene on a second reference (Box2D), and how far the submission's
@@ -184,8 +177,8 @@ std::string second_opinion(const Scene& scene, const RubricTest& t, const State&
     for (uint64_t n = 0; n < other.steps(); ++n) sim.step();
     const auto& x = sim.state().x;
     return "\nsecond opinion (" + name + ", not scored): yours differs from it by " +
-           num((mine.x - x).colwise().norm().maxCoeff()) + ", the reference by " +
-           num((ref.x - x).colwise().norm().maxCoeff());
+           num((mine.x - x).colwise().norm().maxCoeff(), 3) + ", the reference by " +
+           num((ref.x - x).colwise().norm().maxCoeff(), 3);
   } catch (const std::exception& e) {
     return "\nsecond opinion (" + name + ") unavailable: " + e.what();
   }
@@ -216,9 +209,9 @@ Verdict backend_test(const std::shared_ptr<const LoadedPlugin>& plugin, const Ru
     if (t.check == "backend_approaching_only") {
       for (const auto& e : sub.events())
         if (e.vn_before > tol)
-          return {false, "at t = " + num(e.t) + " particle " + std::to_string(e.particle) +
+          return {false, "at t = " + num(e.t, 3) + " particle " + std::to_string(e.particle) +
                              " got an impulse from obstacle " + ref_scene.obstacle_id(e.obstacle) +
-                             " while separating (normal velocity before = " + num(e.vn_before) +
+                             " while separating (normal velocity before = " + num(e.vn_before, 3) +
                              " > 0): apply an impulse only when v.n < 0"};
     }
     if (t.check == "backend_no_tunnelling" && has_distance) {
@@ -226,22 +219,24 @@ Verdict backend_test(const std::shared_ptr<const LoadedPlugin>& plugin, const Ru
         int64_t obstacle = -1;
         const double d = ref.backend().distance(s.x(0, i), s.x(1, i), s.t, &obstacle) - s.radius[i];
         if (d < -tol)
-          return {false, "at step " + std::to_string(n + 1) + " (t = " + num(s.t) + ") particle " +
-                             std::to_string(i) + " is " + num(-d) + " inside obstacle " +
-                             ref_scene.obstacle_id(obstacle) + " (tunnelled or penetrated)"};
+          return {false, "at step " + std::to_string(n + 1) + " (t = " + num(s.t, 3) +
+                             ") particle " + std::to_string(i) + " is " + num(-d, 3) +
+                             " inside obstacle " + ref_scene.obstacle_id(obstacle) +
+                             " (tunnelled or penetrated)"};
       }
     }
   }
   if (t.check == "backend_agreement") {
     const double d = (sub.state().x - ref.state().x).colwise().norm().maxCoeff();
     return {d <= tol, "final positions after " + std::to_string(ref_scene.steps()) +
-                          " steps differ from the reference by " + num(d) + " (accepted " +
-                          num(tol) + ")" + second_opinion(ref_scene, t, sub.state(), ref.state())};
+                          " steps differ from the reference by " + num(d, 3) + " (accepted " +
+                          num(tol, 3) + ")" +
+                          second_opinion(ref_scene, t, sub.state(), ref.state())};
   }
   if (t.check == "backend_no_tunnelling" && !has_distance)
     return {false, "the reference backend has no distance(): cannot check (rubric error)"};
   return {true, t.check == "backend_no_tunnelling"
-                    ? "no particle ever ended a step inside an obstacle by more than " + num(tol)
+                    ? "no particle ever ended a step inside an obstacle by more than " + num(tol, 3)
                     : "every impulse was applied while approaching"};
 }
 

@@ -12,6 +12,7 @@
 #include <map>
 #include <optional>
 
+#include "core/format.hpp"
 #include "core/json_read.hpp"
 #include "core/simulation.hpp"
 #include "tools/bench_answer.hpp"
@@ -126,8 +127,8 @@ Result run_point(const Case& c, const Point& p, int repeats, PluginLoader& loade
       }
     }
     if (ref && k != ref->size())
-      throw SceneError(c.name + ": dt = " + sweep::num(p.dt) + " does not divide the reference's " +
-                       "sample_every = " + sweep::num(every));
+      throw SceneError(c.name + ": dt = " + num(p.dt) + " does not divide the reference's " +
+                       "sample_every = " + num(every));
     res.err_max = emax;
     res.err_final = efin;
     res.drift = sim.energy_complete() ? sim.max_energy_drift() : std::nan("");
@@ -254,13 +255,11 @@ int run(const Options& o) {
     if (r.status != "ok") code = 1;
     std::replace(r.status.begin(), r.status.end(), ',', ';');
     spdlog::info("[{}/{}] {} {} {} dt={} err_max={} time={}s {}", p.index + 1, points.size(),
-                 c.name, bname, p.integrator, p.dt, sweep::num(r.err_max), sweep::num(r.t_med),
-                 r.status);
+                 c.name, bname, p.integrator, p.dt, num(r.err_max), num(r.t_med), r.status);
     t.rows.push_back({std::to_string(p.index), c.name,
                       c.answer.is_null() ? "reference" : c.answer.value("type", "?"), bname,
-                      p.integrator, sweep::num(p.dt), std::to_string(r.steps),
-                      std::to_string(repeats), sweep::num(r.t_med), sweep::num(r.t_min),
-                      sweep::num(r.err_final), sweep::num(r.err_max), sweep::num(r.drift),
+                      p.integrator, num(p.dt), std::to_string(r.steps), std::to_string(repeats),
+                      num(r.t_med), num(r.t_min), num(r.err_final), num(r.err_max), num(r.drift),
                       std::to_string(r.force_evals), std::to_string(r.jac_evals),
                       std::to_string(r.contacts), r.status});
   }
@@ -327,7 +326,7 @@ void report(const sweep::Table& t, const fs::path& out) {
       dat << "# " << sname << ": error_max time_median_s dt\n";
       for (const auto& p : pts)
         if (p[2] > 0.0 && std::isfinite(p[2]) && p[3] > 0.0)
-          dat << sweep::num(p[2]) << ' ' << sweep::num(p[3]) << ' ' << sweep::num(p[0]) << '\n';
+          dat << num(p[2]) << ' ' << num(p[3]) << ' ' << num(p[0]) << '\n';
       gp << (k ? ", \\\n     " : "") << "'" << file << "' using 1:2 with linespoints title '"
          << sname << "' noenhanced";  // names hold '_', not subscripts
       ++k;

@@ -14,6 +14,7 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/format.hpp"
 #include "core/param_validation.hpp"
 #include "tools/check_layout.hpp"
 
@@ -56,12 +57,6 @@ struct Sample {
     return {static_cast<uint64_t>(n()), 0.0, x.data(), v.data(), w.data(), r.data()};
   }
 };
-
-std::string num(double v) {
-  char b[32];
-  std::snprintf(b, sizeof b, "%.3g", v);
-  return b;
-}
 
 std::string dof_name(Eigen::Index j) {
   return "particle " + std::to_string(j / 2) + (j % 2 == 0 ? " x" : " y");
@@ -307,9 +302,9 @@ CheckResult Checker::gradient_check() {
     const Eigen::Index j = at / 1000;
     const bool ok = converged(e1, e2);
     keep_worst(r, e2, ok,
-               "state " + std::to_string(trial) + ", " + dof_name(j) + ": f = " + num(f[j]) +
-                   ", -dE/dx = " + num(g2[j]) + "; error " + num(e1) + " at h, " + num(e2) +
-                   " at h/2" + (ok ? "" : " (does not converge)"));
+               "state " + std::to_string(trial) + ", " + dof_name(j) + ": f = " + num(f[j], 3) +
+                   ", -dE/dx = " + num(g2[j], 3) + "; error " + num(e1, 3) + " at h, " +
+                   num(e2, 3) + " at h/2" + (ok ? "" : " (does not converge)"));
   }
   return r;
 }
@@ -352,8 +347,8 @@ CheckResult Checker::jacobian_check(int which) {
     const bool ok = converged(e1, e2);
     keep_worst(r, e2, ok,
                "state " + std::to_string(trial) + ", d(" + dof_name(row) + ")/d(" + dof_name(col) +
-                   "): analytic " + num(k(row, col)) + ", difference " + num(g2(row, col)) +
-                   "; error " + num(e1) + " at h, " + num(e2) + " at h/2" +
+                   "): analytic " + num(k(row, col), 3) + ", difference " + num(g2(row, col), 3) +
+                   "; error " + num(e1, 3) + " at h, " + num(e2, 3) + " at h/2" +
                    (ok ? "" : " (does not converge)"));
   }
   return r;
@@ -398,7 +393,7 @@ CheckResult Checker::momentum_check(bool angular) {
     const double e = std::isfinite(err) ? err / scale : std::numeric_limits<double>::infinity();
     keep_worst(r, e, e <= r.tolerance,
                "state " + std::to_string(trial) + ": |" + (angular ? "sum x*f" : "sum f") +
-                   "| = " + num(err) + " against a scale of " + num(scale));
+                   "| = " + num(err, 3) + " against a scale of " + num(scale, 3));
   }
   return r;
 }
@@ -431,19 +426,19 @@ CheckResult Checker::invariance_check() {
     const Eigen::Map<const VectorXd> rotv(rot.data(), rot.size());
     const double scale = f0.cwiseAbs().maxCoeff() + 1e-300;
     double e = (f1 - rotv).cwiseAbs().maxCoeff() / scale;
-    std::string what = "forces differ from the rotated forces by " + num(e) + " relative";
+    std::string what = "forces differ from the rotated forces by " + num(e, 3) + " relative";
     if (has_e) {
       const double e0 = inst->energy(s), e1 = inst->energy(m);
       // Scale: |E| plus the work the forces would do over the configuration's extent.
       const double escale = std::abs(e0) + f0.cwiseAbs().sum() * 2.0 + 1e-300;
       const double de = std::abs(e1 - e0) / escale;
-      if (!(de <= e)) what = "energy " + num(e0) + " became " + num(e1);
+      if (!(de <= e)) what = "energy " + num(e0, 3) + " became " + num(e1, 3);
       e = std::max(e, de);
       if (!std::isfinite(de)) e = std::numeric_limits<double>::infinity();
     }
     if (!std::isfinite(e)) e = std::numeric_limits<double>::infinity();
     keep_worst(r, e, e <= r.tolerance,
-               "state " + std::to_string(trial) + ", rotation " + num(th) + " rad: " + what);
+               "state " + std::to_string(trial) + ", rotation " + num(th, 3) + " rad: " + what);
   }
   return r;
 }
@@ -546,7 +541,7 @@ CheckResult Checker::dissipation_check() {
     const double p = fd.dot(v);
     const double scale = fd.norm() * v.norm() + 1e-300;
     double e = std::max(0.0, p) / scale;
-    std::string what = "damping power " + num(p);
+    std::string what = "damping power " + num(p, 3);
     if (inst->has(PINSIM_CAP_DFDV) && t_->force.add_jacobians != nullptr) {
       const MatrixXd k = inst->jacobian(s, 1);
       const MatrixXd sym = 0.5 * (k + k.transpose());
@@ -554,7 +549,7 @@ CheckResult Checker::dissipation_check() {
       if (kmax > 0 && std::isfinite(kmax)) {
         const double lmax = Eigen::SelfAdjointEigenSolver<MatrixXd>(sym).eigenvalues().maxCoeff();
         const double el = std::max(0.0, lmax) / kmax;
-        if (el > e) what = "df/dv has a positive eigenvalue " + num(lmax);
+        if (el > e) what = "df/dv has a positive eigenvalue " + num(lmax, 3);
         e = std::max(e, el);
       } else if (!std::isfinite(kmax)) {
         e = std::numeric_limits<double>::infinity();
@@ -653,8 +648,8 @@ std::string format_report(const CheckReport& rep) {
   for (const auto& c : rep.checks) {
     char line[160];
     std::snprintf(line, sizeof line, "  %-4s  %-17s worst %-9s tol %-8s ", status_name(c.status),
-                  c.name.c_str(), c.status == CheckStatus::Skip ? "-" : num(c.worst).c_str(),
-                  c.tolerance > 0 ? num(c.tolerance).c_str() : "-");
+                  c.name.c_str(), c.status == CheckStatus::Skip ? "-" : num(c.worst, 3).c_str(),
+                  c.tolerance > 0 ? num(c.tolerance, 3).c_str() : "-");
     o << line << c.detail << "\n";
   }
   int fails = 0;

@@ -13,6 +13,7 @@
 #include <map>
 #include <set>
 
+#include "core/format.hpp"
 #include "core/json_read.hpp"
 #include "core/simulation.hpp"
 
@@ -269,13 +270,12 @@ int run(const Options& o) {
     }
     std::string bname = p.backend.is_object() ? p.backend.value("name", "?") : "scene";
     spdlog::info("[{}/{}] {} {} {} dt={} k={} v={} w={}: {} (step {}, particle {})", p.index + 1,
-                 points.size(), c.name, bname, p.integrator, p.dt, sweep::num(p.stiffness),
-                 sweep::num(p.speed), sweep::num(p.thickness), r.cls, r.bad_step, r.particle);
-    t.rows.push_back({std::to_string(p.index), c.name, c.kind, bname, p.integrator,
-                      sweep::num(p.dt), sweep::num(p.stiffness), sweep::num(w),
-                      sweep::num(p.dt * w), sweep::num(p.speed), sweep::num(p.thickness), r.cls,
-                      std::to_string(r.bad_step), std::to_string(r.particle), sweep::num(r.max_pen),
-                      sweep::num(r.drift), std::to_string(r.steps), sweep::num(r.wall)});
+                 points.size(), c.name, bname, p.integrator, p.dt, num(p.stiffness), num(p.speed),
+                 num(p.thickness), r.cls, r.bad_step, r.particle);
+    t.rows.push_back({std::to_string(p.index), c.name, c.kind, bname, p.integrator, num(p.dt),
+                      num(p.stiffness), num(w), num(p.dt * w), num(p.speed), num(p.thickness),
+                      r.cls, std::to_string(r.bad_step), std::to_string(r.particle), num(r.max_pen),
+                      num(r.drift), std::to_string(r.steps), num(r.wall)});
   }
   const fs::path csv = o.out / ("stress" + o.shard.suffix() + ".csv");
   if (o.shard.count == 1) {
@@ -327,9 +327,9 @@ void report(const sweep::Table& t, const fs::path& out) {
     const auto& r0 = *v.front().second;
     const double th = theory_limit(r0[ci]);
     std::cout << fmt::format("{:<18} {:<8} {:<17} {:>10} {:>13} {:>15} {:>10}\n", r0[cc], r0[cb],
-                             r0[ci], r0[cs], std::isnan(last) ? "none" : sweep::num(last),
-                             std::isnan(first_bad) ? "none" : sweep::num(first_bad),
-                             th == 0.0 ? "unstable" : sweep::num(th));
+                             r0[ci], r0[cs], std::isnan(last) ? "none" : num(last),
+                             std::isnan(first_bad) ? "none" : num(first_bad),
+                             th == 0.0 ? "unstable" : num(th));
   }
   // Tunnelling, contact and long runs: one line per run.
   bool header = false;

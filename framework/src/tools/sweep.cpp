@@ -321,12 +321,4 @@ std::vector<nlohmann::json> list_or(const nlohmann::json& a, const nlohmann::jso
   return std::vector<nlohmann::json>(l.begin(), l.end());
 }
 
-std::string num(double x) {
-  if (std::isnan(x)) return "nan";
-  if (std::isinf(x)) return x > 0 ? "inf" : "-inf";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.6g", x);
-  return buf;
-}
-
 }  // namespace pinsim::sweep

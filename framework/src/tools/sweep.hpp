@@ -111,7 +111,4 @@ std::vector<double> numbers(const nlohmann::json& j, const std::string& where);
 std::vector<nlohmann::json> list_or(const nlohmann::json& a, const nlohmann::json& b,
                                     const char* key, const nlohmann::json& def);
 
-/// Shortest round-trip text for a double ("nan", "inf" for those).
-std::string num(double x);
-
 }  // namespace pinsim::sweep
