@@ -5,25 +5,11 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/instances.hpp"
 #include "core/integrator.hpp"
-#include "core/param_validation.hpp"
 
 namespace pinsim {
 namespace {
-
-std::shared_ptr<const LoadedPlugin> load_ref(PluginLoader& loader, const PluginRef& ref,
-                                             const std::filesystem::path& base_dir) {
-  try {
-    if (!ref.library.empty()) {
-      std::filesystem::path lib = ref.library;
-      if (lib.is_relative()) lib = base_dir / lib;
-      return loader.load_path(lib, ref.name);
-    }
-    return loader.load(ref.name);
-  } catch (const LoadError& e) {
-    throw LoadError(ref.where + ": " + e.what());
-  }
-}
 
 void emit_event(void* ctx, const pinsim_event* e) {
   static_cast<std::vector<pinsim_event>*>(ctx)->push_back(*e);
@@ -76,26 +62,8 @@ Simulation::Simulation(const Scene& scene, PluginLoader& loader, const RunOption
     // Another backend's parameters do not apply; it starts from its defaults.
     bref = PluginRef{options.backend, "", nlohmann::json::object(), "--backend " + options.backend};
   }
-  auto bplugin = load_ref(loader, bref, scene_.base_dir);
-  if (bplugin->table->kind != PINSIM_KIND_BACKEND)
-    throw SceneError(bref.where + ": plugin '" + bref.name + "' is a force, not a backend");
-
-  for (const auto& f : scene_.forces) {
-    auto p = load_ref(loader, f, scene_.base_dir);
-    if (p->table->kind != PINSIM_KIND_FORCE)
-      throw SceneError(f.where + ".type: plugin '" + f.name + "' is a backend, not a force");
-    InstanceArgs a;
-    a.params = validate_params(*p->table, f.params, f.where + ".params");
-    a.elements = scene_.resolve_elements(f, p->table->arity);
-    a.context = f.where;
-    forces_.push_back(std::make_unique<ForceInstance>(p, state_, std::move(a)));
-  }
-
-  InstanceArgs ba;
-  ba.params = validate_params(*bplugin->table, bref.params, bref.where + ".params");
-  ba.scene = scene_.backend_scene;
-  ba.context = scene_.label;
-  backend_ = std::make_unique<BackendInstance>(bplugin, state_, std::move(ba));
+  backend_ = create_backend(scene_, loader, bref, scene_.backend_scene, state_);
+  for (const auto& f : scene_.forces) forces_.push_back(create_force(scene_, loader, f, state_));
 
   e0_ = kinetic_energy(state_) + potential_energy(state_);
   // Energy scale for relative drift: total |terms| at the start, never zero.

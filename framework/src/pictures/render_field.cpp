@@ -5,7 +5,7 @@
 #include <cstdint>
 #include <cstring>
 
-#include "core/param_validation.hpp"
+#include "core/instances.hpp"
 
 namespace pinsim {
 using nlohmann::json;
@@ -207,24 +207,7 @@ void draw_solid(cairo_t* cr, const FieldGrid& g, double r, double gr, double b) 
 
 std::unique_ptr<BackendInstance> make_backend(const Scene& scene, PluginLoader& loader,
                                               const json& backend_scene) {
-  const PluginRef& ref = scene.backend;
-  std::shared_ptr<const LoadedPlugin> p;
-  try {
-    if (!ref.library.empty()) {
-      std::filesystem::path lib = ref.library;
-      if (lib.is_relative()) lib = scene.base_dir / lib;
-      p = loader.load_path(lib, ref.name);
-    } else {
-      p = loader.load(ref.name);
-    }
-  } catch (const LoadError& e) {
-    throw LoadError(ref.where + ": " + e.what());
-  }
-  InstanceArgs a;
-  a.params = validate_params(*p->table, ref.params, ref.where + ".params");
-  a.scene = backend_scene;
-  a.context = scene.label;
-  return std::make_unique<BackendInstance>(p, scene.initial_state(), std::move(a));
+  return create_backend(scene, loader, scene.backend, backend_scene, scene.initial_state());
 }
 
 json static_obstacles(const json& backend_scene) {

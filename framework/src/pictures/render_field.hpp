@@ -51,7 +51,7 @@ void draw_field(cairo_t* cr, const PixelMap& map, const FieldGrid& g, double spa
 void draw_solid(cairo_t* cr, const FieldGrid& g, double r, double gr, double b);
 
 /// A backend instance for the scene's backend with a replaced obstacle description (e.g.
-/// only the static or only the moving obstacles). Throws like Simulation does.
+/// only the static or only the moving obstacles), made by core's create_backend.
 std::unique_ptr<BackendInstance> make_backend(const Scene& scene, PluginLoader& loader,
                                               const nlohmann::json& backend_scene);
 
