@@ -1,15 +1,12 @@
 // pinsim grade --rubric R --submission PATH [--out DIR] [--batch [--jobs J] [--shard i/N]]
 // [--batch --slurm [--shards N] ...] and the hidden child `pinsim grade-worker` that runs
 // one test.
-#include <fcntl.h>
 #include <spdlog/spdlog.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 #include <iostream>
-#include <map>
 #include <memory>
 
 #include "cli_slurm.hpp"
@@ -18,6 +15,7 @@
 #include "grading/grader.hpp"
 #include "grading/results.hpp"
 #include "grading/sandbox.hpp"
+#include "tools/child_process.hpp"
 #include "tools/sweep.hpp"
 
 namespace fs = std::filesystem;
@@ -31,18 +29,6 @@ struct GradeArgs {
   int jobs = 0;
   SlurmArgs slurm;
 };
-
-std::pair<std::size_t, std::size_t> parse_shard(const std::string& s) {
-  const auto slash = s.find('/');
-  try {
-    if (slash != std::string::npos) {
-      const std::size_t i = std::stoul(s.substr(0, slash)), n = std::stoul(s.substr(slash + 1));
-      if (n > 0 && i < n) return {i, n};
-    }
-  } catch (const std::exception&) {
-  }
-  throw SceneError("--shard " + s + ": expected i/N with 0 <= i < N, e.g. 0/4");
-}
 
 int grade_one(const GradeArgs& a) {
   Rubric rubric;
@@ -85,17 +71,17 @@ int grade_one(const GradeArgs& a) {
 // in its own `pinsim grade` process, and writes batch.csv.
 int grade_batch(const GradeArgs& a) {
   load_rubric(a.rubric);  // fail early on a bad rubric
-  const auto [shard, shards] = parse_shard(a.shard);
+  const sweep::Shard shard = sweep::parse_shard(a.shard);
   std::vector<fs::path> subs;
   for (const auto& e : fs::directory_iterator(a.submission)) subs.push_back(e.path());
   std::sort(subs.begin(), subs.end());
   std::vector<fs::path> mine;
-  for (std::size_t i = shard; i < subs.size(); i += shards) mine.push_back(subs[i]);
+  for (std::size_t i = 0; i < subs.size(); ++i)
+    if (shard.owns(i)) mine.push_back(subs[i]);
   const int jobs = a.jobs > 0 ? a.jobs : std::max(1L, ::sysconf(_SC_NPROCESSORS_ONLN));
-  std::map<pid_t, fs::path> running;
-  std::size_t next = 0;
-  while (next < mine.size() || !running.empty()) {
-    while (next < mine.size() && static_cast<int>(running.size()) < jobs) {
+  std::size_t next = 0, running = 0;
+  while (next < mine.size() || running > 0) {
+    while (next < mine.size() && static_cast<int>(running) < jobs) {
       const fs::path s = mine[next++];
       const std::string out = (fs::path(a.out) / s.filename()).string();
       std::vector<std::string> argv = {self_exe().string(), "-q",     "grade",
@@ -103,27 +89,16 @@ int grade_batch(const GradeArgs& a) {
                                        s.string(),          "--out",  out};
       if (!a.sdk_prefix.empty()) argv.insert(argv.end(), {"--sdk-prefix", a.sdk_prefix});
       if (a.unsafe) argv.push_back("--unsafe-no-sandbox");
-      std::fflush(nullptr);
-      const pid_t pid = ::fork();
-      if (pid == 0) {
-        std::vector<char*> c;
-        for (auto& x : argv) c.push_back(x.data());
-        c.push_back(nullptr);
-        const int devnull = ::open("/dev/null", O_WRONLY);
-        if (devnull >= 0) ::dup2(devnull, STDOUT_FILENO);
-        ::execv(c[0], c.data());
-        ::_exit(127);
-      }
-      if (pid > 0) running[pid] = s;
+      start_child(argv, ChildOutput::Discard);
+      ++running;
     }
-    int status = 0;
-    const pid_t done = ::wait(&status);
-    if (done > 0) running.erase(done);
+    if (wait_any_child() < 0) break;  // no child left: none can still be running
+    --running;
   }
   // The CSV is written atomically; a shard's gets a manifest (what the whole batch is) so
   // that `pinsim merge` can refuse shards of different batches or a missing one.
-  const fs::path csv = fs::path(a.out) / ("batch-" + std::to_string(shard) + "-of-" +
-                                          std::to_string(shards) + ".csv");
+  const fs::path csv = fs::path(a.out) / ("batch-" + std::to_string(shard.index) + "-of-" +
+                                          std::to_string(shard.count) + ".csv");
   sweep::Table t;
   t.header = {"submission", "score", "max_score"};
   for (const auto& s : mine) {
@@ -134,7 +109,7 @@ int grade_batch(const GradeArgs& a) {
     else
       t.rows.push_back({s.filename().string(), r["score"].dump(), r["max_score"].dump()});
   }
-  if (shards == 1) {
+  if (shard.count == 1) {
     t.write(csv);
   } else {
     std::ifstream rubric(a.rubric);
@@ -144,12 +119,12 @@ int grade_batch(const GradeArgs& a) {
     sweep::Manifest m;
     m.tool = "grade";
     m.sweep = sweep::fingerprint(inputs);
-    m.shard = sweep::Shard{static_cast<int>(shard), static_cast<int>(shards)};
+    m.shard = shard;
     m.points = subs.size();
     sweep::write_shard(t, csv, m);
   }
   std::cout << "graded " << mine.size() << " submission(s) of " << subs.size() << " (shard "
-            << shard << "/" << shards << "); " << csv.string() << "\n";
+            << shard.index << "/" << shard.count << "); " << csv.string() << "\n";
   return 0;
 }
 

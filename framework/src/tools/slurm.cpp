@@ -1,9 +1,7 @@
 #include "tools/slurm.hpp"
 
-#include <fcntl.h>
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
-#include <sys/wait.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -20,6 +18,7 @@
 #include <thread>
 
 #include "core/scene_error.hpp"
+#include "tools/child_process.hpp"
 #include "tools/sweep.hpp"
 
 namespace fs = std::filesystem;
@@ -37,37 +36,18 @@ struct Captured {
 
 /// Runs argv (no shell), capturing stdout and stderr together.
 Captured capture(const std::vector<std::string>& argv) {
-  int fds[2];
-  if (::pipe(fds) != 0) throw SceneError("cannot create a pipe to run " + argv[0]);
-  std::fflush(nullptr);
-  const pid_t pid = ::fork();
-  if (pid < 0) throw SceneError("cannot fork to run " + argv[0]);
-  if (pid == 0) {
-    ::dup2(fds[1], STDOUT_FILENO);
-    ::dup2(fds[1], STDERR_FILENO);
-    ::close(fds[0]);
-    ::close(fds[1]);
-    std::vector<char*> c;
-    for (const auto& a : argv) c.push_back(const_cast<char*>(a.c_str()));
-    c.push_back(nullptr);
-    ::execvp(c[0], c.data());
-    ::_exit(127);
-  }
-  ::close(fds[1]);
+  const Child child = start_child(argv, ChildOutput::Capture);
   Captured r;
   char buf[4096];
   for (;;) {
-    const ssize_t n = ::read(fds[0], buf, sizeof buf);
+    const ssize_t n = ::read(child.out, buf, sizeof buf);
     if (n > 0)
       r.output.append(buf, static_cast<std::size_t>(n));
     else if (n == 0 || errno != EINTR)
       break;
   }
-  ::close(fds[0]);
-  int status = 0;
-  while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-  }
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  ::close(child.out);
+  r.code = wait_child(child.pid);
   return r;
 }
 
