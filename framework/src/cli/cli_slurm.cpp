@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "core/scene_error.hpp"
+#include "tools/sweep.hpp"
 
 namespace pinsim::cli {
 
@@ -61,6 +62,21 @@ int run_on_slurm(const slurm::ArrayJob& job, const SlurmArgs& a) {
       "of their run times), Slurm overhead {:.1f} s",
       o.shards, total, o.busy_seconds, total - o.busy_seconds);
   return std::max(merged, o.worst_exit);
+}
+
+int sweep_on_slurm(const std::string& tool, const std::string& config, const std::string& out,
+                   const std::vector<std::string>& extra, const SlurmArgs& a) {
+  slurm::ArrayJob job;
+  job.tool = tool;
+  job.out = std::filesystem::absolute(out).lexically_normal();
+  job.command = {self_exe().string(), tool,
+                 std::filesystem::absolute(config).lexically_normal().string(), "--out",
+                 job.out.string()};
+  job.command.insert(job.command.end(), extra.begin(), extra.end());
+  job.result = [tool, out = job.out](int i, int n) {
+    return sweep::csv_path(out, tool, sweep::Shard{i, n});
+  };
+  return run_on_slurm(job, a);
 }
 
 }  // namespace pinsim::cli

@@ -30,6 +30,12 @@ void check_slurm_options(const CLI::App* c, const SlurmArgs& a, bool shard_given
 /// failed, or a point failed as in an unsharded run), 130 (stopped following).
 int run_on_slurm(const slurm::ArrayJob& job, const SlurmArgs& a);
 
+/// Runs a sweep tool's shards (tool "bench" or "stress") on Slurm: array task i of n runs
+/// `pinsim TOOL CONFIG --out OUT EXTRA... --shard i/n` and writes sweep::csv_path(OUT, TOOL,
+/// i/n); then merges them as run_on_slurm does. Check the config before calling this.
+int sweep_on_slurm(const std::string& tool, const std::string& config, const std::string& out,
+                   const std::vector<std::string>& extra, const SlurmArgs& a);
+
 /// `pinsim merge`'s work: joins shard CSVs (bench, stress, or grade --batch) into the file an
 /// unsharded run writes in `out` (bench.csv, stress.csv, batch-0-of-1.csv), then reports and
 /// plots as an unsharded run does. Throws SceneError for an incomplete or inconsistent set.

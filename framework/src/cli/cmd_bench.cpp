@@ -8,8 +8,6 @@
 #include "commands.hpp"
 #include "tools/bench.hpp"
 
-namespace fs = std::filesystem;
-
 namespace pinsim::cli {
 namespace {
 
@@ -24,17 +22,9 @@ int bench_on_slurm(const BenchArgs& a) {
   check.config = a.config;
   check.check_only = true;
   bench::run(check);
-  slurm::ArrayJob job;
-  job.tool = "bench";
-  job.out = fs::absolute(a.out).lexically_normal();
-  job.command = {self_exe().string(), "bench", fs::absolute(a.config).lexically_normal().string(),
-                 "--out", job.out.string()};
-  if (a.repeats >= 0)
-    job.command.insert(job.command.end(), {"--repeats", std::to_string(a.repeats)});
-  job.result = [out = job.out](int i, int n) {
-    return out / ("bench" + sweep::Shard{i, n}.suffix() + ".csv");
-  };
-  return run_on_slurm(job, a.slurm);
+  std::vector<std::string> extra;
+  if (a.repeats >= 0) extra = {"--repeats", std::to_string(a.repeats)};
+  return sweep_on_slurm("bench", a.config, a.out, extra, a.slurm);
 }
 
 }  // namespace

@@ -6,8 +6,6 @@
 #include "commands.hpp"
 #include "tools/stress.hpp"
 
-namespace fs = std::filesystem;
-
 namespace pinsim::cli {
 namespace {
 
@@ -21,15 +19,7 @@ int stress_on_slurm(const StressArgs& a) {
   check.config = a.config;
   check.check_only = true;
   stress::run(check);
-  slurm::ArrayJob job;
-  job.tool = "stress";
-  job.out = fs::absolute(a.out).lexically_normal();
-  job.command = {self_exe().string(), "stress", fs::absolute(a.config).lexically_normal().string(),
-                 "--out", job.out.string()};
-  job.result = [out = job.out](int i, int n) {
-    return out / ("stress" + sweep::Shard{i, n}.suffix() + ".csv");
-  };
-  return run_on_slurm(job, a.slurm);
+  return sweep_on_slurm("stress", a.config, a.out, {}, a.slurm);
 }
 
 }  // namespace

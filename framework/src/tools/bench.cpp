@@ -172,16 +172,15 @@ int run(const Options& o) {
   const sweep::Config cfg = sweep::load_config(o.config);
   const json& d = cfg.doc;
   const std::string where = cfg.file.string();
-  if (!d.contains("cases") || !d["cases"].is_array())
-    throw SceneError(where + ".cases: expected a list of cases");
+  const json& cases_j = sweep::cases(cfg);
   check_keys(d, {"$schema", "description", "cases", "integrators", "backends", "dt", "repeats"},
              {where, ""});
   const int repeats = o.repeats >= 0 ? o.repeats : d.value("repeats", 3);
 
   std::vector<Case> cases;
   std::vector<Point> points;
-  for (std::size_t ci = 0; ci < d["cases"].size(); ++ci) {
-    const json& cj = d["cases"][ci];
+  for (std::size_t ci = 0; ci < cases_j.size(); ++ci) {
+    const json& cj = cases_j[ci];
     const std::string cw = where + ": cases[" + std::to_string(ci) + "]";
     check_keys(cj, {"name", "scene", "answer", "reference", "dt", "integrators", "backends"},
                Loc{where, "cases"}[ci]);
@@ -209,35 +208,26 @@ int run(const Options& o) {
     }
     if (c.reference.is_object())
       check_keys(c.reference, {"integrator", "dt", "sample_every"}, at / "reference");
-    const auto dts =
-        sweep::numbers(cj.contains("dt") ? cj["dt"] : d.value("dt", json()), cw + ".dt");
-    const auto integs = sweep::list_or(cj, d, "integrators", json::array({"symplectic_euler"}));
-    const auto backends = sweep::list_or(cj, d, "backends", json::array({json()}));
-    for (const auto& b : backends)
-      for (const auto& in : integs)
-        for (double dt : dts) {
-          json bj = b.is_string() ? json{{"name", b}} : b;
-          points.push_back({points.size(), cases.size(), bj, in.get<std::string>(), dt});
-        }
+    const sweep::Axes ax = sweep::case_axes(cfg, cj, cw);
+    for (const json& b : ax.backends)
+      for (const std::string& in : ax.integrators)
+        for (double dt : ax.dts) points.push_back({points.size(), cases.size(), b, in, dt});
     cases.push_back(std::move(c));
   }
-
-  // What makes shards parts of one sweep: the config, every case's scene, the options.
-  std::string inputs = "bench\n" + d.dump() + "\nrepeats=" + std::to_string(repeats);
-  for (const Case& c : cases) inputs += "\n" + c.doc.dump();
-
   if (o.check_only) return 0;
+
+  sweep::Sweep sw;
+  sw.tool = "bench";
+  sw.columns = columns();
+  sw.points = points.size();
+  // What makes shards parts of one sweep: the config, every case's scene, the options.
+  sw.inputs = "bench\n" + d.dump() + "\nrepeats=" + std::to_string(repeats);
+  for (const Case& c : cases) sw.inputs += "\n" + c.doc.dump();
   PluginLoader loader(plugin_search_dirs());
   std::map<std::pair<std::size_t, std::string>, Samples> refs;
-  sweep::Table t;
-  t.header = columns();
   int code = 0;
-  std::size_t mine = 0;
-  for (const Point& p : points) mine += o.shard.owns(p.index);
-  spdlog::info("{}: {} points, this shard ({}/{}) runs {}", where, points.size(), o.shard.index,
-               o.shard.count, mine);
-  for (const Point& p : points) {
-    if (!o.shard.owns(p.index)) continue;
+  sw.run_point = [&](std::size_t i) -> std::vector<std::string> {
+    const Point& p = points[i];
     const Case& c = cases[p.case_index];
     const std::string bname = backend_name(p.backend, c.doc);
     const Samples* ref = nullptr;
@@ -256,30 +246,26 @@ int run(const Options& o) {
     std::replace(r.status.begin(), r.status.end(), ',', ';');
     spdlog::info("[{}/{}] {} {} {} dt={} err_max={} time={}s {}", p.index + 1, points.size(),
                  c.name, bname, p.integrator, p.dt, num(r.err_max), num(r.t_med), r.status);
-    t.rows.push_back({std::to_string(p.index), c.name,
-                      c.answer.is_null() ? "reference" : c.answer.value("type", "?"), bname,
-                      p.integrator, num(p.dt), std::to_string(r.steps), std::to_string(repeats),
-                      num(r.t_med), num(r.t_min), num(r.err_final), num(r.err_max), num(r.drift),
-                      std::to_string(r.force_evals), std::to_string(r.jac_evals),
-                      std::to_string(r.contacts), r.status});
-  }
-  const fs::path csv = o.out / ("bench" + o.shard.suffix() + ".csv");
-  if (o.shard.count == 1) {
-    t.write(csv);
-  } else {
-    sweep::Manifest m;
-    m.tool = "bench";
-    m.sweep = sweep::fingerprint(inputs);
-    m.shard = o.shard;
-    m.points = points.size();
-    sweep::write_shard(t, csv, m);
-  }
-  spdlog::info("wrote {}", csv.string());
-  if (o.shard.count == 1)
-    report(t, o.out);
-  else
-    spdlog::info("shard done; after all shards: pinsim merge --out {} {}/bench.shard-*.csv",
-                 o.out.string(), o.out.string());
+    return {std::to_string(p.index),
+            c.name,
+            c.answer.is_null() ? "reference" : c.answer.value("type", "?"),
+            bname,
+            p.integrator,
+            num(p.dt),
+            std::to_string(r.steps),
+            std::to_string(repeats),
+            num(r.t_med),
+            num(r.t_min),
+            num(r.err_final),
+            num(r.err_max),
+            num(r.drift),
+            std::to_string(r.force_evals),
+            std::to_string(r.jac_evals),
+            std::to_string(r.contacts),
+            r.status};
+  };
+  sw.report = report;
+  sweep::drive(sw, o.shard, o.out, where);
   return code;
 }
 

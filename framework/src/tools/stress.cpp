@@ -176,16 +176,15 @@ int run(const Options& o) {
   const sweep::Config cfg = sweep::load_config(o.config);
   const json& d = cfg.doc;
   const std::string where = cfg.file.string();
-  if (!d.contains("cases") || !d["cases"].is_array())
-    throw SceneError(where + ".cases: expected a list of cases");
+  const json& cases_j = sweep::cases(cfg);
   check_keys(d,
              {"$schema", "description", "cases", "integrators", "backends", "dt", "energy_blowup",
               "penetration_tolerance"},
              {where, ""});
   std::vector<Case> cases;
   std::vector<Point> points;
-  for (std::size_t ci = 0; ci < d["cases"].size(); ++ci) {
-    const json& cj = d["cases"][ci];
+  for (std::size_t ci = 0; ci < cases_j.size(); ++ci) {
+    const json& cj = cases_j[ci];
     const std::string cw = where + ": cases[" + std::to_string(ci) + "]";
     check_keys(cj,
                {"name", "kind", "scene", "dt", "integrators", "backends", "energy_blowup",
@@ -203,10 +202,7 @@ int run(const Options& o) {
     } else {
       c.base = cfg.dir;
     }
-    const auto dts =
-        sweep::numbers(cj.contains("dt") ? cj["dt"] : d.value("dt", json()), cw + ".dt");
-    const auto integs = sweep::list_or(cj, d, "integrators", json::array({"symplectic_euler"}));
-    const auto backends = sweep::list_or(cj, d, "backends", json::array({json()}));
+    const sweep::Axes ax = sweep::case_axes(cfg, cj, cw);
     std::vector<double> ks = {kNaN}, speeds = {kNaN}, thick = {kNaN};
     if (c.kind == "stiffness") {
       if (!cj.contains("stiffness") || !cj["stiffness"].is_object())
@@ -220,14 +216,13 @@ int run(const Options& o) {
     } else if (c.kind != "run") {
       throw SceneError(cw + ".kind: expected stiffness, tunnelling or run");
     }
-    for (const auto& b : backends)
-      for (const auto& in : integs)
+    for (const json& b : ax.backends)
+      for (const std::string& in : ax.integrators)
         for (double k : ks)
           for (double sp : speeds)
             for (double th : thick)
-              for (double dt : dts) {
-                json bj = b.is_string() ? json{{"name", b}} : b;
-                Point p{points.size(), cases.size(), bj, in.get<std::string>(), dt};
+              for (double dt : ax.dts) {
+                Point p{points.size(), cases.size(), b, in, dt};
                 p.stiffness = k;
                 p.speed = sp;
                 p.thickness = th;
@@ -235,22 +230,19 @@ int run(const Options& o) {
               }
     cases.push_back(std::move(c));
   }
-
-  // What makes shards parts of one sweep: the config, every case's scene, the options.
-  std::string inputs = "stress\n" + d.dump();
-  for (const Case& c : cases) inputs += "\n" + c.doc.dump();
-
   if (o.check_only) return 0;
+
+  sweep::Sweep sw;
+  sw.tool = "stress";
+  sw.columns = columns();
+  sw.points = points.size();
+  // What makes shards parts of one sweep: the config, every case's scene, the options.
+  sw.inputs = "stress\n" + d.dump();
+  for (const Case& c : cases) sw.inputs += "\n" + c.doc.dump();
   PluginLoader loader(plugin_search_dirs());
   std::map<std::pair<std::size_t, double>, double> wmax;
-  sweep::Table t;
-  t.header = columns();
-  std::size_t mine = 0;
-  for (const Point& p : points) mine += o.shard.owns(p.index);
-  spdlog::info("{}: {} points, this shard ({}/{}) runs {}", where, points.size(), o.shard.index,
-               o.shard.count, mine);
-  for (const Point& p : points) {
-    if (!o.shard.owns(p.index)) continue;
+  sw.run_point = [&](std::size_t i) -> std::vector<std::string> {
+    const Point& p = points[i];
     const Case& c = cases[p.case_index];
     double w = kNaN;
     if (c.kind == "stiffness") {
@@ -272,28 +264,27 @@ int run(const Options& o) {
     spdlog::info("[{}/{}] {} {} {} dt={} k={} v={} w={}: {} (step {}, particle {})", p.index + 1,
                  points.size(), c.name, bname, p.integrator, p.dt, num(p.stiffness), num(p.speed),
                  num(p.thickness), r.cls, r.bad_step, r.particle);
-    t.rows.push_back({std::to_string(p.index), c.name, c.kind, bname, p.integrator, num(p.dt),
-                      num(p.stiffness), num(w), num(p.dt * w), num(p.speed), num(p.thickness),
-                      r.cls, std::to_string(r.bad_step), std::to_string(r.particle), num(r.max_pen),
-                      num(r.drift), std::to_string(r.steps), num(r.wall)});
-  }
-  const fs::path csv = o.out / ("stress" + o.shard.suffix() + ".csv");
-  if (o.shard.count == 1) {
-    t.write(csv);
-  } else {
-    sweep::Manifest m;
-    m.tool = "stress";
-    m.sweep = sweep::fingerprint(inputs);
-    m.shard = o.shard;
-    m.points = points.size();
-    sweep::write_shard(t, csv, m);
-  }
-  spdlog::info("wrote {}", csv.string());
-  if (o.shard.count == 1)
-    report(t, o.out);
-  else
-    spdlog::info("shard done; after all shards: pinsim merge --out {} {}/stress.shard-*.csv",
-                 o.out.string(), o.out.string());
+    return {std::to_string(p.index),
+            c.name,
+            c.kind,
+            bname,
+            p.integrator,
+            num(p.dt),
+            num(p.stiffness),
+            num(w),
+            num(p.dt * w),
+            num(p.speed),
+            num(p.thickness),
+            r.cls,
+            std::to_string(r.bad_step),
+            std::to_string(r.particle),
+            num(r.max_pen),
+            num(r.drift),
+            std::to_string(r.steps),
+            num(r.wall)};
+  };
+  sw.report = report;
+  sweep::drive(sw, o.shard, o.out, where);
   return 0;
 }
 

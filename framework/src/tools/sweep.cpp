@@ -321,4 +321,53 @@ std::vector<nlohmann::json> list_or(const nlohmann::json& a, const nlohmann::jso
   return std::vector<nlohmann::json>(l.begin(), l.end());
 }
 
+const nlohmann::json& cases(const Config& cfg) {
+  if (!cfg.doc.contains("cases") || !cfg.doc["cases"].is_array())
+    throw SceneError(cfg.file.string() + ".cases: expected a list of cases");
+  return cfg.doc["cases"];
+}
+
+Axes case_axes(const Config& cfg, const nlohmann::json& c, const std::string& where) {
+  const nlohmann::json& d = cfg.doc;
+  Axes a;
+  a.dts = numbers(c.contains("dt") ? c["dt"] : d.value("dt", nlohmann::json()), where + ".dt");
+  for (const auto& in : list_or(c, d, "integrators", nlohmann::json::array({"symplectic_euler"})))
+    a.integrators.push_back(in.get<std::string>());
+  for (const auto& b : list_or(c, d, "backends", nlohmann::json::array({nlohmann::json()})))
+    a.backends.push_back(b.is_string() ? nlohmann::json{{"name", b}} : b);
+  return a;
+}
+
+fs::path csv_path(const fs::path& out, const std::string& tool, const Shard& shard) {
+  return out / (tool + shard.suffix() + ".csv");
+}
+
+void drive(const Sweep& s, const Shard& shard, const fs::path& out, const std::string& where) {
+  std::size_t mine = 0;
+  for (std::size_t i = 0; i < s.points; ++i) mine += shard.owns(i);
+  spdlog::info("{}: {} points, this shard ({}/{}) runs {}", where, s.points, shard.index,
+               shard.count, mine);
+  Table t;
+  t.header = s.columns;
+  for (std::size_t i = 0; i < s.points; ++i)
+    if (shard.owns(i)) t.rows.push_back(s.run_point(i));
+  const fs::path csv = csv_path(out, s.tool, shard);
+  if (shard.count == 1) {
+    t.write(csv);
+  } else {
+    Manifest m;
+    m.tool = s.tool;
+    m.sweep = fingerprint(s.inputs);
+    m.shard = shard;
+    m.points = s.points;
+    write_shard(t, csv, m);
+  }
+  spdlog::info("wrote {}", csv.string());
+  if (shard.count == 1)
+    s.report(t, out);
+  else
+    spdlog::info("shard done; after all shards: pinsim merge --out {} {}/{}.shard-*.csv",
+                 out.string(), out.string(), s.tool);
+}
+
 }  // namespace pinsim::sweep

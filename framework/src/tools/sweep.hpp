@@ -1,10 +1,12 @@
-// Shared pieces of the bench and stress sweeps (and of batch grading's shards): configs,
-// sharding, CSV tables written atomically, shard manifests, strict merging, least-squares
-// orders and optional gnuplot figures.
+// The one sweep driver that bench and stress share (configs, their cases' axes, the points
+// of this shard, the CSV and its manifest, the report of a whole sweep), and its pieces that
+// batch grading's shards and `pinsim merge` use too: sharding, CSV tables written
+// atomically, shard manifests, strict merging, least-squares orders and gnuplot figures.
 #pragma once
 
 #include <cstddef>
 #include <filesystem>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <optional>
 #include <string>
@@ -110,5 +112,40 @@ std::vector<double> numbers(const nlohmann::json& j, const std::string& where);
 /// The list `key` from a case (`a`), else from the config's top level (`b`), else `def`.
 std::vector<nlohmann::json> list_or(const nlohmann::json& a, const nlohmann::json& b,
                                     const char* key, const nlohmann::json& def);
+
+/// The config's "cases"; throws SceneError naming the file if it is not a list.
+const nlohmann::json& cases(const Config& cfg);
+
+/// What every case of a sweep crosses, backends outermost, dt innermost: each from the case,
+/// else from the config's top level.
+struct Axes {
+  std::vector<nlohmann::json> backends;  ///< {"name": ...} objects; null: the scene's backend
+  std::vector<std::string> integrators;  ///< default: symplectic_euler
+  std::vector<double> dts;               ///< required, seconds
+};
+
+/// The axes of case `c`; `where` names it in messages ("bench.json: cases[2]").
+Axes case_axes(const Config& cfg, const nlohmann::json& c, const std::string& where);
+
+/// What a sweep tool supplies; the driver does the rest.
+struct Sweep {
+  std::string tool;                  ///< "bench" or "stress": CSV name, manifest's tool
+  std::vector<std::string> columns;  ///< the CSV header (first column "point")
+  std::size_t points = 0;            ///< points of the whole sweep, all shards
+  std::string inputs;                ///< what makes shards parts of one sweep (fingerprinted)
+  /// Runs point i (and logs it); returns its CSV row.
+  std::function<std::vector<std::string>(std::size_t)> run_point;
+  /// Prints what a whole sweep's table shows and draws its figures into the folder.
+  std::function<void(const Table&, const std::filesystem::path&)> report;
+};
+
+/// The CSV of one shard of `tool`: OUT/TOOL.csv for 0/1, else OUT/TOOL.shard-i-of-N.csv.
+std::filesystem::path csv_path(const std::filesystem::path& out, const std::string& tool,
+                               const Shard& shard);
+
+/// Runs the points `shard` owns, in order; writes their CSV (a shard of many with its
+/// manifest); then, for a whole sweep, the report. `where` (the config) names the log lines.
+void drive(const Sweep& s, const Shard& shard, const std::filesystem::path& out,
+           const std::string& where);
 
 }  // namespace pinsim::sweep
