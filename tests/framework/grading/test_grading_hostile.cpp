@@ -291,14 +291,17 @@ TEST_CASE("hostile: CMake code runs sandboxed at configure time") {
 }
 
 TEST_CASE("hostile: a configure step that hangs is stopped at the build limit") {
+  // A duration of this test process's own, so that the check below cannot see another
+  // test run's sleep on a shared machine.
+  const std::string sleep = "sleep 600." + std::to_string(::getpid());
   const fs::path sub = source_submission(
-      "cmake_hang", "execute_process(COMMAND sh -c \"sleep 600\" pinsim-hostile-cmake-hang)");
+      "cmake_hang", "execute_process(COMMAND sh -c \"" + sleep + "\" pinsim-hostile-cmake-hang)");
   const Graded g = grade(src / "rubric_build_hang.json", sub, "cmake_hang");
   CHECK(score(g) == 0);
   CHECK_THAT(g.results["tests"][0]["output"].get<std::string>(),
              Contains("the configure step did not finish within the wall-clock limit of 4 s"));
   CHECK(g.seconds < 20);
-  CHECK(processes_with("sleep 600").empty());
+  CHECK(processes_with(sleep).empty());
 }
 
 TEST_CASE("hostile: a compiler error full of multi-byte characters, cut, stays valid text") {
