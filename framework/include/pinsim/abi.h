@@ -21,8 +21,9 @@
 extern "C" {
 #endif
 
-/** Bumped on every incompatible change of any struct in this file. */
-#define PINSIM_ABI_VERSION 1u
+/** Bumped on every incompatible change of any struct in this file.
+ *  2: pinsim_backend_api gained input() (PINSIM_CAP_INPUTS). */
+#define PINSIM_ABI_VERSION 2u
 
 /** Force arity of a plugin whose elements have variable length: each element is a whole
  *  body or a closed ring (all of a blob's boundary particles in order), not a fixed-size
@@ -40,13 +41,14 @@ typedef enum pinsim_kind { PINSIM_KIND_FORCE = 1, PINSIM_KIND_BACKEND = 2 } pins
 
 /** Capability flags (pinsim_plugin.capabilities). */
 enum {
-  PINSIM_CAP_ENERGY = 1u << 0,          /**< force: energy() is provided (conservative part) */
-  PINSIM_CAP_DFDX = 1u << 1,            /**< force: df/dx Jacobian is provided */
-  PINSIM_CAP_DFDV = 1u << 2,            /**< force: df/dv Jacobian is provided */
-  PINSIM_CAP_INTERNAL = 1u << 3,        /**< force: internal, so sum f = 0 and sum x*f = 0 */
-  PINSIM_CAP_DISSIPATIVE = 1u << 4,     /**< force: has a velocity-dependent damping part */
-  PINSIM_CAP_DISTANCE = 1u << 8,        /**< backend: distance() is provided */
-  PINSIM_CAP_PARTICLE_CONTACT = 1u << 9 /**< backend: can resolve particle-particle contacts */
+  PINSIM_CAP_ENERGY = 1u << 0,           /**< force: energy() is provided (conservative part) */
+  PINSIM_CAP_DFDX = 1u << 1,             /**< force: df/dx Jacobian is provided */
+  PINSIM_CAP_DFDV = 1u << 2,             /**< force: df/dv Jacobian is provided */
+  PINSIM_CAP_INTERNAL = 1u << 3,         /**< force: internal, so sum f = 0 and sum x*f = 0 */
+  PINSIM_CAP_DISSIPATIVE = 1u << 4,      /**< force: has a velocity-dependent damping part */
+  PINSIM_CAP_DISTANCE = 1u << 8,         /**< backend: distance() is provided */
+  PINSIM_CAP_PARTICLE_CONTACT = 1u << 9, /**< backend: can resolve particle-particle contacts */
+  PINSIM_CAP_INPUTS = 1u << 10           /**< backend: input() is provided */
 };
 
 /** Declared parameter types. */
@@ -160,6 +162,12 @@ typedef struct pinsim_backend_api {
    *  *obstacle receives the nearest obstacle's index (may be NULL). */
   int (*distance)(void* self, const double* p, double t, double* distance, int64_t* obstacle,
                   pinsim_error* err);
+  /** A live input event between steps (a flipper key pressed or released): input `name`
+   *  changes to `pressed` (1) or released (0) at time t, s, as if the scene's "inputs" list
+   *  had held {"t", "input", "action"} from the start. Calls come in time order, with t at
+   *  or after every earlier event and equal to the state time of the next advance(); an
+   *  unknown name is an error naming it. NULL unless PINSIM_CAP_INPUTS. */
+  int (*input)(void* self, const char* name, int pressed, double t, pinsim_error* err);
 } pinsim_backend_api;
 
 /** The table a plugin exports. Check abi_version and struct_size before anything else. */

@@ -14,6 +14,8 @@
 //   void advance(pinsim::MutableState& s, double dt, pinsim::EventSink& events);
 // and optionally
 //   double distance(const pinsim::Vec2& p, double t, int64_t* obstacle) const; // -> CAP_DISTANCE
+//   void input(const std::string& name, bool pressed, double t);               // -> CAP_INPUTS
+//     (a live press/release at time t, between steps, in time order; throw on an unknown name)
 //
 // Then, once, at namespace scope in one .cpp file:  PINSIM_PLUGIN(MyForce)
 // The macro builds the C table of pinsim/abi.h, exports `pinsim_plugin_entry`, derives the
@@ -324,6 +326,10 @@ template <class T>
 concept HasDistance = requires(const T& t, const Vec2& p, double time, int64_t* o) {
   { t.distance(p, time, o) } -> std::convertible_to<double>;
 };
+template <class T>
+concept HasInput = requires(T& t, const std::string& name, bool pressed, double time) {
+  t.input(name, pressed, time);
+};
 
 /// Owns the strings behind the C table for the library's lifetime.
 struct TableStorage {
@@ -452,6 +458,15 @@ const pinsim_plugin* make_table() {
                                 pinsim_error* err) noexcept {
           return guarded(
               err, [&] { *d = static_cast<const T*>(self)->distance(Vec2(p[0], p[1]), time, o); });
+        };
+      }
+      if constexpr (HasInput<T>) {
+        t.capabilities |= PINSIM_CAP_INPUTS;
+        t.backend.input = [](void* self, const char* name, int pressed, double time,
+                             pinsim_error* err) noexcept {
+          return guarded(err, [&] {
+            static_cast<T*>(self)->input(std::string(name ? name : ""), pressed != 0, time);
+          });
         };
       }
     }

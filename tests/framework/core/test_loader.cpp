@@ -55,6 +55,13 @@ TEST_CASE("loader: wrong ABI version names both versions") {
                           Contains("expects " + std::to_string(PINSIM_ABI_VERSION)));
 }
 
+TEST_CASE("loader: a plugin built against ABI 1 (no backend input()) is refused") {
+  static_assert(PINSIM_ABI_VERSION == 2);
+  REQUIRE_THROWS_WITH(load_plugin_file(fixtures / "libfixture_abi_v1.so"),
+                      Contains("wrong plugin ABI version") && Contains("plugin has 1,") &&
+                          Contains("expects 2") && Contains("rebuild it against this SDK"));
+}
+
 TEST_CASE("loader: two libraries declaring one plugin name") {
   PluginLoader loader({});
   loader.load_path(fixtures / "libfixture_dup_a.so", "dup");
