@@ -121,6 +121,7 @@ ObstacleField::ObstacleField(const nlohmann::json& scene_json, const std::string
         m.fail("type", "unknown motion type '" + type + "' (expected flipper or slider)");
       }
       listened.insert(input);
+      ob.input = input;
       moving_.push_back(static_cast<uint32_t>(i));
     } else {
       static_.push_back(static_cast<uint32_t>(i));
@@ -134,6 +135,24 @@ ObstacleField::ObstacleField(const nlohmann::json& scene_json, const std::string
                   "].input: no obstacle's motion listens to \"" + input_names[i] + "\"");
   }
   build_grid(extra, grid_cells);
+}
+
+void ObstacleField::input(const std::string& name, bool pressed, double t) {
+  if (!(t >= 0.0))
+    throw Error("input \"" + name + "\": time must be >= 0, got " + std::to_string(t));
+  bool found = false;
+  for (uint32_t k : moving_) {
+    Timeline& tl = *obs_[k].timeline;
+    if (obs_[k].input != name) continue;
+    if (!tl.events().empty() && t < tl.events().back().first)
+      throw Error("input \"" + name + "\" at t = " + std::to_string(t) +
+                  " s: before its previous event at t = " +
+                  std::to_string(tl.events().back().first) + " s (events come in time order)");
+    found = true;
+  }
+  if (!found) throw Error("input \"" + name + "\": no obstacle's motion listens to it");
+  for (uint32_t k : moving_)
+    if (obs_[k].input == name) obs_[k].timeline->add_event(t, pressed);
 }
 
 void ObstacleField::build_grid(const std::vector<Vec2>& extra, long grid_cells) {

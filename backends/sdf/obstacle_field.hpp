@@ -32,6 +32,7 @@ struct Obstacle {
   double reach = 0.0;                ///< flipper: max distance of the shape from the pivot
   Aabb sweep;                        ///< slider: bounds over the whole stroke
   std::optional<Timeline> timeline;  ///< flipper angle or slider lambda
+  std::string input;                 ///< the input its motion listens to (moving only)
 };
 
 /// Result of a nearest-obstacle query.
@@ -53,6 +54,12 @@ class ObstacleField {
   std::size_t size() const { return obs_.size(); }
   const Obstacle& obstacle(std::size_t k) const { return obs_[k]; }
   const std::vector<uint32_t>& moving() const { return moving_; }
+
+  /// Input `name` pressed or released at time t (at or after its previous event): appends
+  /// the event to the timeline of every obstacle listening to it, as if the scene's
+  /// "inputs" had listed it. Throws Error naming an input no obstacle listens to, or an
+  /// event earlier than the input's last one.
+  void input(const std::string& name, bool pressed, double t);
 
   /// Smallest signed distance over all obstacles at point p and time t, and which one.
   Nearest nearest(const Vec2& p, double t) const;

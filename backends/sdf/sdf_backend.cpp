@@ -70,9 +70,19 @@ SdfBackend::SdfBackend(const CreateContext& ctx) {
     particle_e_ = c.number_if(
         "restitution", 1.0, [](double x) { return x >= 0.0 && x <= 1.0; }, "must be in [0, 1]");
   }
+  reset_timeline_caches();
+}
+
+void SdfBackend::reset_timeline_caches() {
   speed_bound_.assign(field_.size(), 0.0);
   timeline_hint_.assign(field_.size(), 0);
   last_segment_.assign(field_.size(), 0);
+  rest_ = RestCache{};  // no records and no still epoch, as in a new backend
+}
+
+void SdfBackend::input(const std::string& name, bool pressed, double t) {
+  field_.input(name, pressed, t);
+  reset_timeline_caches();
 }
 
 double SdfBackend::distance(const Vec2& p, double t, int64_t* obstacle) const {

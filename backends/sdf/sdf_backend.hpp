@@ -5,6 +5,7 @@
 
 #include <cstdint>
 #include <pinsim/plugin.hpp>
+#include <string>
 #include <vector>
 
 #include "obstacle_field.hpp"
@@ -21,6 +22,11 @@ class SdfBackend {
   /// Moves every particle with finite mass along its velocity over [s.t, s.t + dt],
   /// resolving each contact at its time of impact.
   void advance(MutableState& s, double dt, EventSink& ev);
+  /// Input `name` pressed or released at time t, between steps: the obstacles listening to
+  /// it get the event on their timelines, and every cache that depends on the timelines is
+  /// reset, so the run continues bit-identical to a backend created with the event in its
+  /// scene's "inputs". Throws Error naming an unknown input.
+  void input(const std::string& name, bool pressed, double t);
   /// Signed distance from p to the nearest obstacle at time t (HUGE_VAL if none).
   double distance(const Vec2& p, double t, int64_t* obstacle) const;
 
@@ -56,6 +62,9 @@ class SdfBackend {
   /// Particle i of s through the step without pair contacts: replayed from the rest cache
   /// when it can be, else marched (and remembered if it ended at rest).
   void march_or_replay(std::size_t i, MutableState& s, double t0, double dt, EventSink& ev);
+  /// Forgets what the steps so far learned about the timelines (speed bounds, segment
+  /// hints, still epochs, rest records), as a newly created backend has.
+  void reset_timeline_caches();
   /// Particle-particle contacts within the step: fills changes_ (see README).
   void schedule_pairs(const MutableState& s, double dt, EventSink& ev);
 

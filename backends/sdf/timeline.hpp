@@ -15,29 +15,25 @@ class Timeline {
   /// while released back towards `rest` at `speed_release`; stops on reaching the target.
   /// `events` are (time, pressed?) in time order.
   Timeline(double rest, double pressed, double speed_press, double speed_release,
-           const std::vector<std::pair<double, bool>>& events)
-      : lo_(std::min(rest, pressed)), hi_(std::max(rest, pressed)) {
-    push(0.0, rest, 0.0);
-    double target = rest;
-    for (const auto& [te, press] : events) {
-      const Seg& last = seg_.back();
-      const double te_c = std::max(te, last.t);
-      // reached the current target before this event?
-      if (last.slope != 0.0) {
-        const double t_reach = last.t + std::abs(target - last.v) / std::abs(last.slope);
-        if (t_reach <= te_c) push(t_reach, target, 0.0);
-      }
-      const Seg& cur = seg_.back();
-      const double v = cur.slope == 0.0 ? cur.v : cur.v + cur.slope * (te_c - cur.t);
-      target = press ? pressed : rest;
-      const double speed = press ? speed_press : speed_release;
-      const double slope = target > v ? speed : (target < v ? -speed : 0.0);
-      push(te_c, v, slope);
-    }
-    const Seg& last = seg_.back();
-    if (last.slope != 0.0)
-      push(last.t + std::abs(target - last.v) / std::abs(last.slope), target, 0.0);
+           std::vector<std::pair<double, bool>> events)
+      : rest_(rest),
+        pressed_(pressed),
+        speed_press_(speed_press),
+        speed_release_(speed_release),
+        lo_(std::min(rest, pressed)),
+        hi_(std::max(rest, pressed)),
+        events_(std::move(events)) {
+    build();
   }
+
+  /// Appends an event at time t (at or after the last one): the same segments as
+  /// constructing with the longer event list.
+  void add_event(double t, bool press) {
+    events_.emplace_back(t, press);
+    build();
+  }
+  /// The events so far, (time, pressed?) in time order.
+  const std::vector<std::pair<double, bool>>& events() const { return events_; }
 
   /// Value at time t.
   double value(double t) const {
@@ -82,6 +78,30 @@ class Timeline {
     double t, v, slope;
     double c, s;  ///< cos v, sin v
   };
+  /// Segments from the parameters and events_.
+  void build() {
+    seg_.clear();
+    push(0.0, rest_, 0.0);
+    double target = rest_;
+    for (const auto& [te, press] : events_) {
+      const Seg& last = seg_.back();
+      const double te_c = std::max(te, last.t);
+      // reached the current target before this event?
+      if (last.slope != 0.0) {
+        const double t_reach = last.t + std::abs(target - last.v) / std::abs(last.slope);
+        if (t_reach <= te_c) push(t_reach, target, 0.0);
+      }
+      const Seg& cur = seg_.back();
+      const double v = cur.slope == 0.0 ? cur.v : cur.v + cur.slope * (te_c - cur.t);
+      target = press ? pressed_ : rest_;
+      const double speed = press ? speed_press_ : speed_release_;
+      const double slope = target > v ? speed : (target < v ? -speed : 0.0);
+      push(te_c, v, slope);
+    }
+    const Seg& last = seg_.back();
+    if (last.slope != 0.0)
+      push(last.t + std::abs(target - last.v) / std::abs(last.slope), target, 0.0);
+  }
   void push(double t, double v, double slope) {
     const Seg g{t, v, slope, std::cos(v), std::sin(v)};
     if (!seg_.empty() && seg_.back().t == t)
@@ -103,8 +123,10 @@ class Timeline {
   }
   const Seg& at(double t) const { return seg_[index(t)]; }
 
-  std::vector<Seg> seg_;
+  double rest_ = 0.0, pressed_ = 0.0, speed_press_ = 0.0, speed_release_ = 0.0;
   double lo_ = 0.0, hi_ = 0.0;
+  std::vector<std::pair<double, bool>> events_;
+  std::vector<Seg> seg_;
 };
 
 }  // namespace pinsim::sdf
