@@ -33,6 +33,10 @@ class Box2dBackend {
 
   /// Sets the bodies' velocities to s.v, steps the world over dt and reads back.
   void advance(MutableState& s, double dt, EventSink& ev);
+  /// Input `name` pressed or released at time t, between steps: the listening obstacles'
+  /// timelines get the event; the kinematic bodies follow from the next step on, from the
+  /// pose they have (nothing is rebuilt). Throws Error naming an unknown input.
+  void input(const std::string& name, bool pressed, double t) { field_.input(name, pressed, t); }
   /// Signed distance to the nearest obstacle at time t (the exact SDF, for tools).
   double distance(const Vec2& p, double t, int64_t* obstacle) const;
 
