@@ -100,4 +100,14 @@ double BackendInstance::distance(double x, double y, double t, int64_t* obstacle
   return d;
 }
 
+void BackendInstance::input(const std::string& name, bool pressed, double t) {
+  if (!has_input())
+    throw PluginError(context_ + ": backend '" + plugin_->name() +
+                      "' does not take live inputs (no PINSIM_CAP_INPUTS), so input \"" + name +
+                      "\" cannot change between steps");
+  pinsim_error err = make_err(err_);
+  if (plugin_->table->backend.input(self_, name.c_str(), pressed ? 1 : 0, t, &err) != 0)
+    fail("input");
+}
+
 }  // namespace pinsim

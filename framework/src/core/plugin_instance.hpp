@@ -73,6 +73,14 @@ class BackendInstance {
   void advance(State& s, double dt, const pinsim_event_sink* events);
   bool has_distance() const { return plugin_->table->backend.distance != nullptr; }
   double distance(double x, double y, double t, int64_t* obstacle) const;
+  /// True if the backend takes live input events (PINSIM_CAP_INPUTS).
+  bool has_input() const {
+    return plugin_->table->backend.input != nullptr &&
+           (plugin_->table->capabilities & PINSIM_CAP_INPUTS) != 0;
+  }
+  /// Input `name` pressed or released at time t, between steps. Throws PluginError if the
+  /// backend has no input() or refuses the event (an unknown name).
+  void input(const std::string& name, bool pressed, double t);
   const LoadedPlugin& plugin() const { return *plugin_; }
 
  private:

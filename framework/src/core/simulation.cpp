@@ -77,6 +77,10 @@ Simulation::~Simulation() = default;
 
 nlohmann::json Simulation::integrator_stats() const { return integrator_->stats(); }
 
+void Simulation::set_input(const std::string& name, bool pressed) {
+  backend_->input(name, pressed, state_.t);
+}
+
 void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f) {
   f.setZero(2, s.x.cols());
   const pinsim_state_view view = s.view();

@@ -58,6 +58,12 @@ class Simulation {
   /// Throws NumericError on NaN/Inf (checked every step) or energy blow-up.
   void step();
 
+  /// Presses or releases a named input (a flipper, the plunger) at the current state time,
+  /// between steps: the next step() sees it, as MuJoCo's controls set between mj_step1 and
+  /// mj_step2. Nothing is rebuilt. Throws PluginError if the backend lacks
+  /// PINSIM_CAP_INPUTS or does not know the input.
+  void set_input(const std::string& name, bool pressed);
+
   /// f = sum of all forces at state s (f is resized to 2xN and zeroed first).
   void compute_forces(const State& s, Eigen::Matrix2Xd& f);
   /// The backend's position update over dt; appends events.
