@@ -37,15 +37,16 @@ class PinballGame {
   /// The scene's own scripted inputs are dropped: the player drives the inputs.
   PinballGame(const Scene& scene, PluginLoader& loader, GameRules rules = {});
 
-  /// Presses or releases a named input (a flipper, the plunger) before the next step.
-  /// Repeats of the current state are ignored (and not recorded).
+  /// Presses or releases a named input (a flipper, the plunger) before the next step, through
+  /// Simulation::set_input (the backend's timeline grows; nothing is rebuilt). Repeats of
+  /// the current state are ignored (and not recorded).
   void set_input(const std::string& input, bool pressed);
-  /// One physics step (symplectic Euler: forces kick, the backend drifts with contacts),
-  /// then the rules: score, drain, ball save, game over. Does nothing after game over.
+  /// One Simulation::step (the scene's integrator, its NaN and energy checks), then the
+  /// rules on its events: score, drain, ball save, game over. Does nothing after game over.
   void step();
 
-  const State& state() const { return state_; }
-  uint64_t steps() const { return steps_; }
+  const State& state() const { return sim_->state(); }
+  uint64_t steps() const { return sim_->step_index(); }
   double dt() const { return scene_.dt; }
   int score() const { return score_; }
   int balls_left() const { return balls_left_; }
@@ -55,7 +56,7 @@ class PinballGame {
   double message_until() const { return message_until_; }
   /// Names of the scene's inputs (from the moving obstacles).
   const std::vector<std::string>& input_names() const { return input_names_; }
-  const BackendInstance& backend() const { return *backend_; }
+  const BackendInstance& backend() const { return sim_->backend(); }
   const Scene& scene() const { return scene_; }
 
   /// {"scene", "dt", "steps", "inputs": [{"step","input","action"}], "state_hash", "score",
@@ -65,24 +66,16 @@ class PinballGame {
   void replay(const nlohmann::json& recording);
 
  private:
-  void rebuild_backend();
   void serve_ball();
 
   Scene scene_;
-  PluginLoader& loader_;
   GameRules rules_;
-  std::unique_ptr<Simulation> sim_;  ///< forces only; the backend is ours
-  std::unique_ptr<BackendInstance> backend_;
-  State state_;
+  std::unique_ptr<Simulation> sim_;  ///< the one step path: forces, integrator, backend
   State initial_;
-  Eigen::Matrix2Xd f_;
-  std::vector<pinsim_event> events_;
-  nlohmann::json inputs_ = nlohmann::json::array();  ///< as the backend's "inputs"
   std::vector<GameInput> recorded_;
   std::vector<std::string> input_names_;
   std::vector<bool> pressed_;
   ViewBox table_;  ///< the obstacles' bounds: below it the ball has drained
-  uint64_t steps_ = 0;
   int score_ = 0;
   int balls_left_ = 0;
   bool game_over_ = false;
