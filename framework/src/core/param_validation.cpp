@@ -143,7 +143,8 @@ std::string format_param_table(const pinsim_plugin& plugin) {
       {PINSIM_CAP_INTERNAL, "internal"},
       {PINSIM_CAP_DISSIPATIVE, "dissipative"},
       {PINSIM_CAP_DISTANCE, "distance"},
-      {PINSIM_CAP_PARTICLE_CONTACT, "particle-contact"}};
+      {PINSIM_CAP_PARTICLE_CONTACT, "particle-contact"},
+      {PINSIM_CAP_INPUTS, "inputs"}};
   bool any = false;
   for (const auto& [bit, label] : caps)
     if (plugin.capabilities & bit) {
