@@ -5,6 +5,7 @@
 
 #include "sdf_harness.hpp"
 
+using namespace pinsim;
 using namespace pinsim::sdf;
 using namespace pinsim::sdf::test;
 using Catch::Matchers::Contains;
