@@ -247,7 +247,7 @@ TEST_CASE(
 }
 
 TEST_CASE(
-    "play: a window under Xvfb with scripted input; its recording replays to the same "
+    "play: a window under Xvfb with scripted input, and its recording replays to the same "
     "state hash") {
   if (shell("command -v xvfb-run >/dev/null").code != 0) {
     WARN("SKIPPED: xvfb-run is not installed (scripts/setup.sh installs xvfb)");
