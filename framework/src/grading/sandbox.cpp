@@ -61,6 +61,15 @@ void set_limit(int resource, rlim_t soft, rlim_t hard) {
   ::setrlimit(resource, &rl);
 }
 
+/// Whether a folder holding a mount point must be made (readable) in the sandbox: not /tmp
+/// itself (a 1777 tmpfs already) and nothing in the read-only /usr, except under /usr/local
+/// (a tmpfs there); a folder under /tmp, such as a build tree there, like any other.
+bool needs_dir(const fs::path& p) {
+  const std::string s = p.string();
+  if (s == "/tmp" || s == "/usr" || s == "/usr/local") return false;
+  return s.rfind("/usr/", 0) != 0 || s.rfind("/usr/local/", 0) == 0;
+}
+
 /// The bubblewrap command line for one step.
 std::vector<std::string> bwrap_args(const SandboxSpec& spec, const std::vector<std::string>& argv) {
   const auto [uid, gid] = sandbox_ids();
@@ -97,8 +106,7 @@ std::vector<std::string> bwrap_args(const SandboxSpec& spec, const std::vector<s
   for (const auto& m : spec.mounts)
     for (fs::path p = fs::path(m.inside).parent_path(); !m.inside.empty() && p != p.root_path();
          p = p.parent_path())
-      if (p.string().rfind("/usr", 0) != 0 && p.string().rfind("/tmp", 0) != 0)
-        parents.push_back(p.string());
+      if (needs_dir(p)) parents.push_back(p.string());
   std::sort(parents.begin(), parents.end());
   parents.erase(std::unique(parents.begin(), parents.end()), parents.end());
   for (const auto& p : parents) a.insert(a.end(), {"--perms", "0755", "--dir", p});

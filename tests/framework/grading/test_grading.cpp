@@ -99,6 +99,25 @@ TEST_CASE("grader: a whole-body force (variable-length elements) is graded in th
   CHECK(r["score"].get<double>() == 4);
 }
 
+TEST_CASE("grader: a source folder builds against an SDK package that lives under /tmp") {
+  // The sandbox mounts the package at its own path; a path in /tmp (a CI clone there) needs
+  // its folders made inside the sandbox's private /tmp, readable by the sandbox's uid.
+  const fs::path prefix = "/tmp/pinsim-test-sdk-copy-" + std::to_string(::getpid());
+  fs::remove_all(prefix);
+  fs::copy(fs::path(PINSIM_BIN).parent_path().parent_path() / "sdk-package", prefix,
+           fs::copy_options::recursive);
+  const fs::path out = pinsim::test::temp_dir("grade-sdk-copy");
+  const auto r = pinsim::test::shell(std::string(PINSIM_BIN) + " -q grade --rubric " +
+                                     (src / "rubric_springs.json").string() + " --submission " +
+                                     (src / "submissions/correct_source").string() + " --out " +
+                                     out.string() + " --sdk-prefix " + prefix.string() + " 2>&1");
+  CAPTURE(r.output);
+  CHECK(r.code == 0);
+  const json res = json::parse(pinsim::test::read_file(out / "results.json"));
+  CHECK(res["score"].get<double>() == 10);
+  fs::remove_all(prefix);
+}
+
 TEST_CASE("grader: each broken force submission gets its expected score and message") {
   const fs::path rubric = src / "rubric_springs.json";
   struct Case {
