@@ -10,18 +10,21 @@ pinsim=${1:-build/release/bin/pinsim}
 baseline=${2:-}
 repeats=${3:-7}
 rubric=${4:-configs/grading/force_assignment.json}
-plugins=$(dirname "$(dirname "$pinsim")")/plugins
 work=$(mktemp -d "${TMPDIR:-/tmp}/pinsim-bench-grade.XXXXXX")
 trap 'rm -rf "$work"' EXIT
-mkdir "$work/sub"
-cp "$plugins"/libpinsim_plugin_{linear_spring,damped_spring,bending}.so "$work/sub/"
 programs=("$pinsim")
 [ -n "$baseline" ] && programs+=("$baseline")
+# Each program grades the shipped plugins of its own build (their ABI is its own).
+for k in "${!programs[@]}"; do
+  mkdir "$work/sub.$k"
+  cp "$(dirname "$(dirname "${programs[$k]}")")"/plugins/libpinsim_plugin_{linear_spring,damped_spring,bending}.so \
+    "$work/sub.$k/"
+done
 
 # One grade: appends "seconds max_rss_kb score max_score" to $work/runs.K
 run() {
   /usr/bin/time -f "%e %M" -o "$work/time" "$1" -q grade --rubric "$rubric" \
-    --submission "$work/sub" --out "$work/out" >/dev/null 2>&1 || true
+    --submission "$work/sub.$2" --out "$work/out" >/dev/null 2>&1 || true
   python3 -c 'import json, sys
 t = open(sys.argv[1]).read().split()
 r = json.load(open(sys.argv[2]))
