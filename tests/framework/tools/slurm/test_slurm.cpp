@@ -18,6 +18,7 @@
 #include <thread>
 #include <vector>
 
+#include "../oscillator_bench.hpp"
 #include "test_support.hpp"
 
 namespace fs = std::filesystem;
@@ -29,19 +30,6 @@ using pinsim::test::shell;
 namespace {
 
 const std::string kCluster = PINSIM_REPO_DIR "/scripts/slurm/cluster.sh";
-
-// A small bench: the harmonic oscillator (closed form), 2 integrators x 4 dt = 8 points.
-const char* kBench = R"({
-  "repeats": 1,
-  "integrators": ["symplectic_euler", "velocity_verlet"],
-  "cases": [{"name": "oscillator",
-    "scene": {"time": {"dt": 0.01, "duration": 2.0},
-              "particles": [{"x": [0, 0], "pinned": true}, {"x": [1, 0], "v": [0, 1.5], "mass": 2.0}],
-              "forces": [{"type": "linear_spring", "params": {"k": 18.0, "rest_length": 0.0},
-                          "elements": [[0, 1]]}]},
-    "answer": {"type": "harmonic", "particle": 1, "omega": 3.0},
-    "dt": [0.01, 0.005, 0.0025, 0.00125]}]
-})";
 
 /// CSV rows as cells, header first.
 std::vector<std::vector<std::string>> csv(const fs::path& file) {
