@@ -495,6 +495,17 @@ Outcome run(const ArrayJob& job, const Request& r) {
           if (gone_since[i] < 0) gone_since[i] = elapsed();
           if (ended.rfind("COMPLETED", 0) == 0 && elapsed() - gone_since[i] < 120.0) continue;
           if (ended.empty() && absent[i] < 2) continue;
+          // Killed after its command had written the whole result (a cancel or a time limit
+          // between the result's rename and the status file): the result is checked against
+          // its manifest's hash, so it is as good as a completed shard's.
+          if (result_complete(job, i, sub.shards)) {
+            spdlog::info(
+                "shard {} of {} (job {}) ended {} after writing its complete result; "
+                "using it",
+                i, sub.shards, task, ended.empty() ? "without a record" : ended);
+            phase[i] = Phase::done;
+            continue;
+          }
           phase[i] = Phase::failed;
           why[i] = ended.empty() ? "left the queue without a result, and Slurm has no record of "
                                    "it (cancelled before it started?)"

@@ -233,41 +233,55 @@ TEST_CASE("slurm: 3-shard bench and 2-shard batch grade on a one-node cluster eq
     CHECK(!overhead.empty());
     std::cout << "slurm test, bench 3 shards: " << overhead << "\n";
 
-    // Shards one at a time (each asks for all the node's CPUs), each running about a second
-    // here (--repeats 6000); shard 0 is cancelled while it runs, so it never writes a result.
-    // The run reports it by index, with Slurm's verdict and its log, and fails.
+    // Two shards fail, each in a way that does not race with the shard's own run time: the
+    // array is submitted held, shard 0 is cancelled while pending (it never starts), and
+    // shard 1 finds a folder where its result file goes, so its command fails after starting.
+    // The run reports both by index, with Slurm's verdict or the exit code and the log.
     const fs::path fr = dir / "fr";
     const std::string cpus = std::to_string(std::max(1u, std::thread::hardware_concurrency()));
     const std::string cmd = pinsim + " bench " + cfg + " --out " + fr.string() +
                             " --slurm --shards 3 --cpus " + cpus + " --repeats 6000 --time 2";
-    shell("(" + cmd + " > " + (dir / "fr.log").string() + " 2>&1; echo $? > " +
+    shell("(" + cmd + " --sbatch-arg=--hold > " + (dir / "fr.log").string() + " 2>&1; echo $? > " +
           (dir / "fr.code").string() + ") > /dev/null 2>&1 &");
     REQUIRE(wait_for(fr / "slurm" / "job.json", 30));
     const auto job = nlohmann::json::parse(read_file(fr / "slurm" / "job.json"));
     const std::string id = job["jobs"][0];
-    REQUIRE(wait_for(fr / "slurm" / "shard-0.log", 30));  // Slurm made it: shard 0 started
     const auto cancel = shell("scancel " + id + "_0");
     INFO(cancel.output);
     REQUIRE(cancel.code == 0);
+    fs::create_directories(fr / "bench.shard-1-of-3.csv");
+    const auto release = shell("scontrol release " + id);
+    INFO(release.output);
+    REQUIRE(release.code == 0);
     REQUIRE(wait_for(dir / "fr.code", 60));
     const std::string failed = read_file(dir / "fr.log");
     INFO(failed);
     CHECK(std::stoi(read_file(dir / "fr.code")) == 1);
-    CHECK_THAT(failed, Contains("shard 0 of 3 (job " + id + "_0) failed: CANCELLED"));
-    CHECK_THAT(failed, Contains("== pinsim shard 0 of 3: job " + id + "_0"));  // its log
-    CHECK_THAT(failed, Contains("1 of 3 shards failed (shard 0)"));
+    // Slurm may already have forgotten a task cancelled while pending; either way it failed.
+    CHECK_THAT(failed, Contains("shard 0 of 3 (job " + id + "_0) failed: "));
+    CHECK_THAT(failed, Contains("(none: it never started)"));
+    CHECK_THAT(failed, Contains("shard 1 of 3 (job " + id + "_1) failed: exit code"));
+    CHECK_THAT(failed, Contains("== pinsim shard 1 of 3: job " + id + "_1"));  // its log
+    CHECK_THAT(failed, Contains("bench.shard-1-of-3.csv"));  // the log's error names the file
+    CHECK_THAT(failed, Contains("2 of 3 shards failed (shards 0-1)"));
     CHECK_THAT(failed, Contains("--resume"));
-    CHECK(!fs::exists(fr / "bench.shard-0-of-3.csv"));  // no half-written result
+    CHECK(!fs::exists(fr / "bench.shard-0-of-3.csv"));  // no result from the cancelled shard
+    CHECK(fs::exists(fr / "bench.shard-2-of-3.csv"));
     CHECK(!fs::exists(fr / "bench.csv"));
+    fs::remove(fr / "bench.shard-1-of-3.csv");
+    const fs::path kept = dir / "kept";  // shard 2's complete result, for the last case below
+    fs::create_directories(kept);
+    for (const char* f : {"bench.shard-2-of-3.csv", "bench.shard-2-of-3.json"})
+      fs::copy_file(fr / f, kept / f);
 
-    // --resume resubmits shard 0 only, then merges; the result is the unsharded run's.
+    // --resume resubmits shards 0 and 1 only, then merges; the result is the unsharded run's.
     const auto res = shell(cmd + " --resume");
     INFO(res.output);
     REQUIRE(res.code == 0);
-    CHECK_THAT(res.output, Contains("resubmitting shard 0 of 3"));
+    CHECK_THAT(res.output, Contains("resubmitting shards 0-1 of 3"));
     const auto job2 = nlohmann::json::parse(read_file(fr / "slurm" / "job.json"));
     CHECK(job2["jobs"][0] != id);
-    CHECK(job2["jobs"][1] == id);
+    CHECK(job2["jobs"][1] == job2["jobs"][0]);
     CHECK(job2["jobs"][2] == id);
     REQUIRE(
         pinsim_cli("-q bench " + cfg + " --repeats 6000 --out " + (dir / "whole2").string()).code ==
@@ -279,6 +293,31 @@ TEST_CASE("slurm: 3-shard bench and 2-shard batch grade on a one-node cluster eq
     INFO(again.output);
     CHECK(again.code == 0);
     CHECK_THAT(again.output, Contains("no shard to resubmit"));
+
+    // A shard that Slurm ends as CANCELLED (or TIMEOUT) after its command wrote the whole
+    // result, before the job script's status line: the result is checked against its
+    // manifest's hash and used. Made deterministic by a held fresh submission: shard 2's
+    // complete result (kept from above) is put back before all three are cancelled.
+    shell("(" + cmd + " --sbatch-arg=--hold > " + (dir / "late.log").string() +
+          " 2>&1; echo $? > " + (dir / "late.code").string() + ") > /dev/null 2>&1 &");
+    REQUIRE(wait_for(fr / "slurm" / "job.json", 30));
+    std::string late_id;
+    for (int tries = 0; tries < 600 && (late_id.empty() || late_id == job2["jobs"][0]); ++tries) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+      const auto j = nlohmann::json::parse(read_file(fr / "slurm" / "job.json"), nullptr, false);
+      if (j.is_object() && j.contains("jobs")) late_id = j["jobs"][0].get<std::string>();
+    }
+    REQUIRE(late_id != job2["jobs"][0]);
+    for (const char* f : {"bench.shard-2-of-3.csv", "bench.shard-2-of-3.json"})
+      fs::copy_file(kept / f, fr / f, fs::copy_options::overwrite_existing);
+    REQUIRE(shell("scancel " + late_id).code == 0);
+    REQUIRE(wait_for(dir / "late.code", 60));
+    const std::string late = read_file(dir / "late.log");
+    INFO(late);
+    CHECK(std::stoi(read_file(dir / "late.code")) == 1);
+    CHECK_THAT(late, Contains("shard 2 of 3 (job " + late_id + "_2) ended CANCELLED"));
+    CHECK_THAT(late, Contains("after writing its complete result; using it"));
+    CHECK_THAT(late, Contains("2 of 3 shards failed (shards 0-1)"));
   }
 
   {  // grade --batch: 2 shards, merged = unsharded, scores per test identical
