@@ -6,6 +6,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/input_error.hpp"
 #include "core/json_read.hpp"
 
 namespace pinsim::cli {
@@ -53,6 +54,25 @@ std::vector<std::string> with_backend(const std::string& file, const std::string
   out.push_back("backend=" + nlohmann::json{{"name", backend}, {"params", params}}.dump());
   out.insert(out.end(), overrides.begin(), overrides.end());
   return out;
+}
+
+RunData read_run_folder(const std::filesystem::path& dir) {
+  if (!is_run_dir(dir))
+    throw InputError(dir.string() + ": not a run folder (expected trajectory.csv in it, as " +
+                     "pinsim run --out writes)");
+  try {
+    return load_run(dir);
+  } catch (const std::exception& e) {
+    throw InputError(dir.string() + ": cannot read the run folder: " + e.what());
+  }
+}
+
+ViewBox view_option(const std::string& text) {
+  try {
+    return parse_view(text);
+  } catch (const std::invalid_argument& e) {
+    throw InputError(e.what());
+  }
 }
 
 }  // namespace pinsim::cli

@@ -2,7 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
-#include "core/scene_error.hpp"
+#include "core/input_error.hpp"
 #include "tools/sweep.hpp"
 
 namespace pinsim::cli {
@@ -32,11 +32,11 @@ void add_slurm_options(CLI::App* c, SlurmArgs& a) {
 
 void check_slurm_options(const CLI::App* c, const SlurmArgs& a, bool shard_given) {
   if (a.slurm && shard_given)
-    throw SceneError("--slurm runs every shard itself: drop --shard (use --shards N)");
+    throw InputError("--slurm runs every shard itself: drop --shard (use --shards N)");
   if (a.slurm) return;
   for (const char* o : {"--shards", "--partition", "--time", "--mem", "--cpus", "--sbatch-arg",
                         "--no-wait", "--resume"})
-    if (c->count(o)) throw SceneError(std::string(o) + " needs --slurm");
+    if (c->count(o)) throw InputError(std::string(o) + " needs --slurm");
 }
 
 std::filesystem::path self_exe() { return std::filesystem::read_symlink("/proc/self/exe"); }

@@ -21,7 +21,7 @@ struct SlurmArgs {
 /// --resume to a subcommand.
 void add_slurm_options(CLI::App* c, SlurmArgs& a);
 
-/// Throws SceneError (exit 2) if a Slurm option is given without --slurm, or --slurm
+/// Throws InputError (exit 2) if a Slurm option is given without --slurm, or --slurm
 /// together with --shard (`shard_given`).
 void check_slurm_options(const CLI::App* c, const SlurmArgs& a, bool shard_given);
 
@@ -38,7 +38,7 @@ int sweep_on_slurm(const std::string& tool, const std::string& config, const std
 
 /// `pinsim merge`'s work: joins shard CSVs (bench, stress, or grade --batch) into the file an
 /// unsharded run writes in `out` (bench.csv, stress.csv, batch-0-of-1.csv), then reports and
-/// plots as an unsharded run does. Throws SceneError for an incomplete or inconsistent set.
+/// plots as an unsharded run does. Throws InputError for an incomplete or inconsistent set.
 int merge_shards(const std::vector<std::filesystem::path>& files, const std::filesystem::path& out);
 
 /// This program's absolute path (/proc/self/exe).

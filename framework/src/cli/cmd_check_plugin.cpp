@@ -7,9 +7,9 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "core/input_error.hpp"
 #include "core/plugin_loader.hpp"
 #include "core/scene.hpp"
-#include "core/scene_error.hpp"
 #include "tools/check_layout.hpp"
 #include "tools/plugin_check.hpp"
 
@@ -35,12 +35,12 @@ nlohmann::json parse_params(const CheckPluginArgs& a) {
   nlohmann::json p = nlohmann::json::object();
   if (!a.params_json.empty()) {
     p = nlohmann::json::parse(a.params_json, nullptr, false);
-    if (!p.is_object()) throw SceneError("--params: expected a JSON object, got " + a.params_json);
+    if (!p.is_object()) throw InputError("--params: expected a JSON object, got " + a.params_json);
   }
   for (const auto& kv : a.params) {
     const auto eq = kv.find('=');
     if (eq == std::string::npos || eq == 0)
-      throw SceneError("--param " + kv + ": expected key=value");
+      throw InputError("--param " + kv + ": expected key=value");
     const std::string key = kv.substr(0, eq), value = kv.substr(eq + 1);
     nlohmann::json v = nlohmann::json::parse(value, nullptr, false);
     p[key] = v.is_discarded() ? nlohmann::json(value) : v;
@@ -61,9 +61,9 @@ int run_check_plugin(const CheckPluginArgs& a) {
     }
     std::string name = a.plugin;
     if (name.empty()) {
-      if (!scene) throw SceneError("give a plugin name or path, or --scene with --force-index");
+      if (!scene) throw InputError("give a plugin name or path, or --scene with --force-index");
       if (a.force_index >= scene->forces.size())
-        throw SceneError(scene->label + ": --force-index " + std::to_string(a.force_index) +
+        throw InputError(scene->label + ": --force-index " + std::to_string(a.force_index) +
                          ": the scene has " + std::to_string(scene->forces.size()) + " force(s)");
       name = scene->forces[a.force_index].name;
     }

@@ -28,7 +28,7 @@ int crosscheck_command(const CrosscheckArgs& a) {
   if (!a.backends.empty()) {
     const auto comma = a.backends.find(',');
     if (comma == std::string::npos || a.backends.find(',', comma + 1) != std::string::npos)
-      throw SceneError(
+      throw InputError(
           "--backends: expected two names separated by a comma, e.g. sdf,box2d; got '" +
           a.backends + "'");
     spec.backends = {a.backends.substr(0, comma), a.backends.substr(comma + 1)};

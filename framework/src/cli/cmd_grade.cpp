@@ -11,7 +11,7 @@
 
 #include "cli_slurm.hpp"
 #include "commands.hpp"
-#include "core/scene_error.hpp"
+#include "core/input_error.hpp"
 #include "grading/grader.hpp"
 #include "grading/results.hpp"
 #include "grading/sandbox.hpp"
@@ -133,7 +133,7 @@ int grade_batch(const GradeArgs& a) {
 int grade_batch_on_slurm(const GradeArgs& a) {
   load_rubric(a.rubric);  // fail early on a bad rubric
   if (!fs::is_directory(a.submission))
-    throw SceneError("--submission " + a.submission + ": with --batch, expected a folder");
+    throw InputError("--submission " + a.submission + ": with --batch, expected a folder");
   slurm::ArrayJob job;
   job.tool = "grade";
   job.out = fs::absolute(a.out).lexically_normal();
@@ -178,7 +178,7 @@ void add_grade_command(CLI::App& app) {
   add_slurm_options(c, a->slurm);
   c->callback([a, c] {
     check_slurm_options(c, a->slurm, c->count("--shard") > 0);
-    if (a->slurm.slurm && !a->batch) throw SceneError("--slurm grades with --batch only");
+    if (a->slurm.slurm && !a->batch) throw InputError("--slurm grades with --batch only");
     grading::set_unsafe_no_sandbox(a->unsafe);
     if (a->unsafe)
       spdlog::warn("grading WITHOUT a sandbox: submissions can read and write what this user can");

@@ -7,7 +7,7 @@
 
 #include "cli_slurm.hpp"
 #include "commands.hpp"
-#include "core/scene_error.hpp"
+#include "core/input_error.hpp"
 #include "tools/bench.hpp"
 #include "tools/stress.hpp"
 
@@ -31,7 +31,7 @@ int merge_shards(const std::vector<std::filesystem::path>& files,
   const bool is_stress = t.header == stress::columns();
   const bool is_batch = t.header == kBatchColumns;
   if (!is_bench && !is_stress && !is_batch)
-    throw SceneError(files[0].string() +
+    throw InputError(files[0].string() +
                      ": not a bench, stress or grade --batch CSV (unknown "
                      "header)");
   const auto csv = out / (is_bench ? "bench.csv" : is_stress ? "stress.csv" : "batch-0-of-1.csv");

@@ -1,5 +1,5 @@
 // pinsim play [SCENE] [--script FILE] [--seconds S] [--record FILE] [--screenshot FILE.png]
-//             [--replay FILE] [--width W]
+//             [--rerun RECORDING] [--width W]
 // A window (SDL2) showing the table at 60 frames per second; the physics steps at the scene's
 // dt (a frame advances the game by 1/60 s of simulated time). Keys: Left/Z/LShift left
 // flipper, Right/M/RShift right flipper, Space/Down plunger, Enter new game, Esc quit.
@@ -11,9 +11,12 @@
 #include <cmath>
 #include <fstream>
 #include <memory>
+#include <sstream>
 
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "core/input_error.hpp"
+#include "core/json_read.hpp"
 #include "pictures/cairo_handles.hpp"
 #include "pictures/play_game.hpp"
 #include "pictures/render.hpp"
@@ -46,7 +49,7 @@ struct PlayArgs {
   double seconds = 0;
   std::string record;
   std::string screenshot;
-  std::string replay;
+  std::string rerun;
   int width = 480;
 };
 
@@ -57,14 +60,42 @@ struct Scripted {
   bool press;
 };
 
-std::vector<Scripted> read_script(const std::string& file) {
+/// The JSON document in `file`, given with `flag`; InputError naming both and `expected`
+/// if it cannot be read, and the file, line and column if it is not JSON.
+json read_json_file(const std::string& flag, const std::string& file, const std::string& expected) {
   std::ifstream in(file);
-  if (!in) throw std::runtime_error(file + ": cannot open");
-  const json j = json::parse(in, nullptr, true, true);
+  if (!in) throw InputError(flag + " " + file + ": cannot be read (expected " + expected + ")");
+  std::stringstream text;
+  text << in.rdbuf();
+  return parse_json_text(text.str(), file);
+}
+
+/// "press" or "release" at `at`; InputError otherwise.
+bool read_action(const json& entry, const Loc& at) {
+  const std::string a = read_string_or(entry, "action", "", at);
+  if (a != "press" && a != "release")
+    (at / "action")
+        .fail("expected \"press\" or \"release\", " + describe(entry.value("action", json())));
+  return a == "press";
+}
+
+std::vector<Scripted> read_script(const std::string& file) {
+  const json j =
+      read_json_file("--script", file, "[{\"t\": s, \"input\": name, \"action\": press|release}]");
+  const Loc root{file, ""};
+  if (!j.is_array() && !(j.is_object() && j.contains("inputs")))
+    root.fail("expected a list of inputs, or an object with \"inputs\", " + describe(j));
+  const Loc list = j.is_array() ? root : root / "inputs";
+  const json& entries = j.is_array() ? j : j["inputs"];
+  if (!entries.is_array()) list.fail("expected a list of inputs, " + describe(entries));
   std::vector<Scripted> out;
-  for (const auto& e : j.is_array() ? j : j.at("inputs"))
-    out.push_back({e.at("t").get<double>(), e.at("input").get<std::string>(),
-                   e.at("action").get<std::string>() == "press"});
+  for (std::size_t i = 0; i < entries.size(); ++i) {
+    const Loc at = list[i];
+    require_object(entries[i], at);
+    const std::string input = read_string_or(entries[i], "input", "", at);
+    if (input.empty()) (at / "input").fail("required input name is missing");
+    out.push_back({read_number(entries[i], "t", at), input, read_action(entries[i], at)});
+  }
   std::stable_sort(out.begin(), out.end(),
                    [](const Scripted& a, const Scripted& b) { return a.t < b.t; });
   return out;
@@ -184,15 +215,40 @@ class Painter {
   std::vector<Region> regions_;
 };
 
-int replay_recording(const PlayArgs& a) {
-  std::ifstream in(a.replay);
-  if (!in) throw std::runtime_error(a.replay + ": cannot open");
-  const json rec = json::parse(in);
-  const std::string scene_file = a.scene.empty() ? rec.at("scene").get<std::string>() : a.scene;
+/// Checks a recording (`play --record`'s JSON) so that rerunning it cannot fail half way;
+/// InputError naming the file and JSON path of the first problem.
+void check_recording(const json& rec, const std::string& file, bool scene_given) {
+  const Loc root{file, ""};
+  require_object(rec, root);
+  read_string_or(rec, "scene", "", root);  // "": the embedded default scene
+  if (!scene_given && !rec.contains("scene"))
+    (root / "scene").fail("required scene file is missing (or give SCENE on the command line)");
+  if (!rec.contains("steps")) (root / "steps").fail("required step count is missing");
+  read_count_or(rec, "steps", 0, root);
+  if (read_string_or(rec, "state_hash", "", root).empty())
+    (root / "state_hash").fail("required state hash is missing");
+  if (!rec.contains("inputs") || !rec["inputs"].is_array())
+    (root / "inputs").fail("expected a list of inputs, " + describe(rec.value("inputs", json())));
+  const json& in = rec["inputs"];
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const Loc at = (root / "inputs")[i];
+    require_object(in[i], at);
+    if (!in[i].contains("step")) (at / "step").fail("required step number is missing");
+    read_count_or(in[i], "step", 0, at);
+    if (read_string_or(in[i], "input", "", at).empty())
+      (at / "input").fail("required input name is missing");
+    read_action(in[i], at);
+  }
+}
+
+int rerun_recording(const PlayArgs& a) {
+  const json rec = read_json_file("--rerun", a.rerun, "a recording written by play --record");
+  check_recording(rec, a.rerun, !a.scene.empty());
+  const std::string scene_file = a.scene.empty() ? rec.value("scene", "") : a.scene;
   Scene scene = load_scene_or_default(scene_file, {});
   PluginLoader loader(plugin_search_dirs(scene.plugin_path));
   PinballGame game(scene, loader);
-  game.replay(rec);
+  game.rerun(rec);
   const json out = game.recording(scene_file);
   const bool same = out["state_hash"] == rec.at("state_hash");
   std::printf("state_hash %s after %llu steps, score %d: %s\n",
@@ -203,7 +259,7 @@ int replay_recording(const PlayArgs& a) {
 }
 
 int play_command(const PlayArgs& a) {
-  if (!a.replay.empty()) return replay_recording(a);
+  if (!a.rerun.empty()) return rerun_recording(a);
   const std::string scene_file = a.scene;
   Scene scene = load_scene_or_default(scene_file, {});
   PluginLoader loader(plugin_search_dirs(scene.plugin_path));
@@ -313,8 +369,9 @@ void add_play_command(CLI::App& app) {
   c->add_option("--seconds", a->seconds, "Quit after this much game time, s");
   c->add_option("--record", a->record, "Write the input recording (JSON) here when done");
   c->add_option("--screenshot", a->screenshot, "Save the last frame shown (PNG)");
-  c->add_option("--replay", a->replay,
-                "Replay a recording without a window; exit 0 if the state hash is identical");
+  c->add_option("--rerun,--replay", a->rerun,
+                "Rerun a recording's inputs without a window; exit 0 if the state hash is "
+                "identical (--replay is the same option)");
   c->add_option("--width,-w", a->width, "Window width, pixels")->check(CLI::Range(128, 4096));
   c->callback([a] { throw CLI::RuntimeError(play_command(*a)); });
 }

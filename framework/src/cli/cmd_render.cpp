@@ -7,6 +7,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "core/input_error.hpp"
 #include "pictures/render.hpp"
 
 namespace pinsim::cli {
@@ -37,12 +38,13 @@ int render_command(const RenderArgs& a) {
       else
         dirs = sub_run_dirs(p);  // e.g. a crosscheck report: one run per backend
       if (dirs.empty())
-        throw std::runtime_error(in + ": not a run folder (no trajectory.csv in it or below)");
-      for (const auto& d : dirs) job.runs.push_back(load_run(d));
+        throw InputError(in + ": not a run folder (expected trajectory.csv in it or in its " +
+                         "subfolders, as pinsim run or crosscheck --out writes)");
+      for (const auto& d : dirs) job.runs.push_back(read_run_folder(d));
       if (default_out.empty()) default_out = p / "picture.png";
     } else {
       if (!scene_file.empty() && scene_file != in)
-        throw std::runtime_error(in + ": only one scene per picture (already " + scene_file + ")");
+        throw InputError(in + ": only one scene per picture (already " + scene_file + ")");
       scene_file = in;
       if (default_out.empty()) default_out = fs::path(in).replace_extension(".png").filename();
     }
@@ -56,11 +58,12 @@ int render_command(const RenderArgs& a) {
     spdlog::warn(
         "the run's scene was not found (no scene.json in the run folder, summary.json "
         "\"scene\" not found); drawing without obstacles (give it with --scene)");
-  if (!job.scene && job.runs.empty()) throw std::runtime_error("render: nothing to draw");
+  if (!job.scene && job.runs.empty())
+    throw InputError("render: nothing to draw (expected a scene file or a run folder)");
 
   RenderOptions opt;
   opt.width = a.width;
-  if (!a.view.empty()) opt.view = parse_view(a.view);
+  if (!a.view.empty()) opt.view = view_option(a.view);
   if (a.time >= 0) opt.time = a.time;
   opt.field = !a.no_field;
   opt.trajectories = !a.no_trajectories;

@@ -4,6 +4,7 @@
 #include <filesystem>
 #include <memory>
 
+#include "cli_common.hpp"
 #include "commands.hpp"
 #include "pictures/replay.hpp"
 
@@ -21,9 +22,7 @@ struct ReplayArgs {
 };
 
 int replay_command(const ReplayArgs& a) {
-  if (!is_run_dir(a.run))
-    throw std::runtime_error(a.run + ": not a run folder (no trajectory.csv)");
-  const RunData run = load_run(a.run);
+  const RunData run = read_run_folder(a.run);
   std::optional<Scene> scene;
   if (!a.scene.empty())
     scene = load_scene(a.scene, a.set);
@@ -35,7 +34,7 @@ int replay_command(const ReplayArgs& a) {
         "\"scene\" not found); the page shows no obstacles (give it with --scene)");
   ReplayOptions opt;
   opt.width = a.width;
-  if (!a.view.empty()) opt.view = parse_view(a.view);
+  if (!a.view.empty()) opt.view = view_option(a.view);
   const fs::path out = a.out.empty() ? fs::path(a.run) / "replay.html" : fs::path(a.out);
   PluginLoader loader(plugin_search_dirs(scene ? scene->plugin_path : std::vector<fs::path>{}));
   const PixelMap map = write_replay(run, scene ? &*scene : nullptr, loader, opt, out);

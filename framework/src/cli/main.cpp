@@ -5,9 +5,9 @@
 #include <iostream>
 
 #include "commands.hpp"
+#include "core/input_error.hpp"
 #include "core/plugin_instance.hpp"
 #include "core/plugin_loader.hpp"
-#include "core/scene_error.hpp"
 
 int main(int argc, char** argv) {
   auto logger = spdlog::stderr_color_mt("pinsim");
@@ -45,9 +45,13 @@ int main(int argc, char** argv) {
   } catch (const CLI::RuntimeError& e) {
     return e.get_exit_code();  // a subcommand's own exit status
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // --help, --version, or a flag CLI11 itself refuses (bad input: 2, like an InputError).
+    return app.exit(e) == 0 ? 0 : 2;
+  } catch (const pinsim::InputError& e) {
+    spdlog::error("{}", e.what());  // bad input: nothing ran
+    return 2;
   } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
+    spdlog::error("{}", e.what());  // a plugin that cannot be loaded or created, or the system
     return 2;
   }
   return 0;

@@ -5,8 +5,8 @@
 #include <set>
 #include <utility>
 
+#include "core/input_error.hpp"
 #include "core/json_read.hpp"
-#include "core/scene_error.hpp"
 
 namespace pinsim {
 
@@ -14,11 +14,11 @@ namespace {
 
 using Eigen::Vector2d;
 
-/// "file.json: bodies[1]" -> Loc{file.json, bodies[1]}.
+/// "file.json: bodies[1]" -> Loc{file.json, bodies[1]} in a scene.
 Loc split_where(const std::string& where) {
   const auto c = where.find(": ");
-  if (c == std::string::npos) return {where, ""};
-  return {where.substr(0, c), where.substr(c + 2)};
+  if (c == std::string::npos) return {where, "", true};
+  return {where.substr(0, c), where.substr(c + 2), true};
 }
 
 /// The particle options every body shares.
@@ -34,28 +34,27 @@ struct ParticleOptions {
 ParticleOptions read_particle_options(const nlohmann::json& spec, uint64_t count, const Loc& at) {
   ParticleOptions o;
   if (spec.contains("mass") && spec.contains("total_mass"))
-    throw(at / "total_mass").error("give either mass (per particle) or total_mass, not both");
+    (at / "total_mass").fail("give either mass (per particle) or total_mass, not both");
   double m = 1.0;
   if (spec.contains("total_mass"))
     m = read_number(spec, "total_mass", at) / static_cast<double>(count);
   else
     m = read_number_or(spec, "mass", 1.0, at);
   if (!(m > 0.0) || !std::isfinite(m))
-    throw(at / (spec.contains("total_mass") ? "total_mass" : "mass"))
-        .error("must be > 0 (kg), got " + std::to_string(m));
+    (at / (spec.contains("total_mass") ? "total_mass" : "mass"))
+        .fail("must be > 0 (kg), got " + std::to_string(m));
   o.inv_mass = 1.0 / m;
   o.radius = read_number_or(spec, "radius", 0.05, at);
-  if (!(o.radius >= 0.0)) throw(at / "radius").error("must be >= 0 (scene units)");
+  if (!(o.radius >= 0.0)) (at / "radius").fail("must be >= 0 (scene units)");
   o.velocity = read_vec2_or(spec, "velocity", Vector2d::Zero(), at);
   o.all_pinned = read_bool_or(spec, "pinned", false, at);
   if (spec.contains("pin")) {
     const auto& p = spec["pin"];
-    if (!p.is_array())
-      throw(at / "pin").error("expected a list of particle indices, " + describe(p));
+    if (!p.is_array()) (at / "pin").fail("expected a list of particle indices, " + describe(p));
     for (std::size_t i = 0; i < p.size(); ++i) {
       if (!p[i].is_number_integer() || p[i].get<int64_t>() < 0 || p[i].get<uint64_t>() >= count)
-        throw(at / "pin")[i].error("expected a particle index 0.." + std::to_string(count - 1) +
-                                   ", " + describe(p[i]));
+        (at / "pin")[i].fail("expected a particle index 0.." + std::to_string(count - 1) + ", " +
+                             describe(p[i]));
       o.pinned.insert(p[i].get<uint64_t>());
     }
   }
@@ -97,8 +96,8 @@ uint64_t read_count_min(const nlohmann::json& spec, const char* key, uint64_t de
                         const Loc& at) {
   const uint64_t n = read_count_or(spec, key, def, at);
   if (n < min || n > 1000000)
-    throw(at / key).error("must be between " + std::to_string(min) + " and 1000000, got " +
-                          std::to_string(n));
+    (at / key).fail("must be between " + std::to_string(min) + " and 1000000, got " +
+                    std::to_string(n));
   return n;
 }
 
@@ -116,7 +115,7 @@ Body ring_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
   const Vector2d c =
       read_vec2(spec.contains("center") ? spec["center"] : nlohmann::json(), at / "center");
   const double rr = read_number_or(spec, "ring_radius", 1.0, at);
-  if (!(rr > 0.0)) throw(at / "ring_radius").error("must be > 0 (scene units)");
+  if (!(rr > 0.0)) (at / "ring_radius").fail("must be > 0 (scene units)");
   const uint64_t n = read_count_min(spec, "count", 16, 3, at);
   const double a0 = read_number_or(spec, "angle", 0.0, at);
   const ParticleOptions o = read_particle_options(spec, n, at);
@@ -170,7 +169,7 @@ Body grid_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
   const uint64_t nx = read_count_min(spec, "nx", 4, 2, at),
                  ny = read_count_min(spec, "ny", 4, 2, at);
   const double h = read_number_or(spec, "spacing", 0.1, at);
-  if (!(h > 0.0)) throw(at / "spacing").error("must be > 0 (scene units)");
+  if (!(h > 0.0)) (at / "spacing").fail("must be > 0 (scene units)");
   const ParticleOptions o = read_particle_options(spec, nx * ny, at);
   Body b;
   b.first = static_cast<uint32_t>(out.size());
@@ -225,17 +224,17 @@ Body strand(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
   const Vector2d root =
       read_vec2(spec.contains("root") ? spec["root"] : nlohmann::json(), at / "root");
   Vector2d d = read_vec2_or(spec, "direction", Vector2d(0, -1), at);
-  if (!(d.norm() > 0.0)) throw(at / "direction").error("must be a non-zero vector");
+  if (!(d.norm() > 0.0)) (at / "direction").fail("must be a non-zero vector");
   d.normalize();
   const uint64_t n = read_count_min(spec, "count", 10, 2, at);
   if (spec.contains("segment_length") && spec.contains("length"))
-    throw(at / "length").error("give either segment_length or length, not both");
+    (at / "length").fail("give either segment_length or length, not both");
   const double seg = spec.contains("length")
                          ? read_number(spec, "length", at) / static_cast<double>(n - 1)
                          : read_number_or(spec, "segment_length", 0.1, at);
   if (!(seg > 0.0))
-    throw(at / (spec.contains("length") ? "length" : "segment_length"))
-        .error("must be > 0 (scene units)");
+    (at / (spec.contains("length") ? "length" : "segment_length"))
+        .fail("must be > 0 (scene units)");
   ParticleOptions o = read_particle_options(spec, n, at);
   if (read_bool_or(spec, "pin_root", true, at)) o.pinned.insert(0);
   Body b;
@@ -281,7 +280,7 @@ Body build_body(const nlohmann::json& spec, const std::string& where, ParticleLi
   }
   std::string known;
   for (const auto& t : body_types()) known += (known.empty() ? "" : ", ") + t;
-  throw(at / "type").error("unknown body type '" + type + "' (known: " + known + ")");
+  (at / "type").fail("unknown body type '" + type + "' (known: " + known + ")");
 }
 
 }  // namespace pinsim

@@ -1,7 +1,7 @@
 #include "core/instances.hpp"
 
+#include "core/input_error.hpp"
 #include "core/param_validation.hpp"
-#include "core/scene_error.hpp"
 
 namespace pinsim {
 

@@ -14,7 +14,7 @@ std::string describe(const nlohmann::json& v) {
 }
 
 void require_object(const nlohmann::json& j, const Loc& at) {
-  if (!j.is_object()) throw at.error("expected an object, " + describe(j));
+  if (!j.is_object()) at.fail("expected an object, " + describe(j));
 }
 
 void check_keys(const nlohmann::json& obj, std::initializer_list<const char*> allowed,
@@ -25,19 +25,19 @@ void check_keys(const nlohmann::json& obj, std::initializer_list<const char*> al
     if (ok) continue;
     std::string list;
     for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
-    throw(at / key).error("unknown key (expected one of: " + list + ")");
+    (at / key).fail("unknown key (expected one of: " + list + ")");
   }
 }
 
 static double as_number(const nlohmann::json& v, const Loc& at) {
-  if (!v.is_number()) throw at.error("expected a number, " + describe(v));
+  if (!v.is_number()) at.fail("expected a number, " + describe(v));
   const double d = v.get<double>();
-  if (!std::isfinite(d)) throw at.error("expected a finite number");
+  if (!std::isfinite(d)) at.fail("expected a finite number");
   return d;
 }
 
 double read_number(const nlohmann::json& obj, const char* key, const Loc& at) {
-  if (!obj.contains(key)) throw(at / key).error("required number is missing");
+  if (!obj.contains(key)) (at / key).fail("required number is missing");
   return as_number(obj.at(key), at / key);
 }
 
@@ -46,7 +46,7 @@ double read_number_or(const nlohmann::json& obj, const char* key, double def, co
 }
 
 Eigen::Vector2d read_vec2(const nlohmann::json& v, const Loc& at) {
-  if (!v.is_array() || v.size() != 2) throw at.error("expected [x, y], " + describe(v));
+  if (!v.is_array() || v.size() != 2) at.fail("expected [x, y], " + describe(v));
   return {as_number(v[0], at[0]), as_number(v[1], at[1])};
 }
 
@@ -59,14 +59,14 @@ std::string read_string_or(const nlohmann::json& obj, const char* key, const std
                            const Loc& at) {
   if (!obj.contains(key)) return def;
   const auto& v = obj.at(key);
-  if (!v.is_string()) throw(at / key).error("expected a string, " + describe(v));
+  if (!v.is_string()) (at / key).fail("expected a string, " + describe(v));
   return v.get<std::string>();
 }
 
 bool read_bool_or(const nlohmann::json& obj, const char* key, bool def, const Loc& at) {
   if (!obj.contains(key)) return def;
   const auto& v = obj.at(key);
-  if (!v.is_boolean()) throw(at / key).error("expected true or false, " + describe(v));
+  if (!v.is_boolean()) (at / key).fail("expected true or false, " + describe(v));
   return v.get<bool>();
 }
 
@@ -74,7 +74,7 @@ uint64_t read_count_or(const nlohmann::json& obj, const char* key, uint64_t def,
   if (!obj.contains(key)) return def;
   const auto& v = obj.at(key);
   if (!v.is_number_integer() || v.get<long long>() < 0)
-    throw(at / key).error("expected a non-negative integer, " + describe(v));
+    (at / key).fail("expected a non-negative integer, " + describe(v));
   return v.get<uint64_t>();
 }
 
@@ -199,7 +199,7 @@ class StrictSax : public nlohmann::json_sax<nlohmann::json> {
 nlohmann::json parse_json_text(const std::string& text, const std::string& label,
                                const JsonLimits& limits) {
   if (text.size() > limits.max_bytes)
-    throw SceneError(label + ": " + std::to_string(text.size()) +
+    throw InputError(label + ": " + std::to_string(text.size()) +
                      " bytes, larger than the limit of " + std::to_string(limits.max_bytes) +
                      " bytes for a JSON file");
   nlohmann::json out;
@@ -214,7 +214,7 @@ nlohmann::json parse_json_text(const std::string& text, const std::string& label
   if (ok) return out;
   if (!sax.problem().empty()) {
     const std::string path = sax.path();
-    throw SceneError(label + ": " + (path.empty() ? "(top level)" : path) + ": " + sax.problem());
+    throw InputError(label + ": " + (path.empty() ? "(top level)" : path) + ": " + sax.problem());
   }
   std::string what = sax.error();
   const std::string where = label + ":" + line_col(text, sax.error_pos()) + ": ";
@@ -223,7 +223,7 @@ nlohmann::json parse_json_text(const std::string& text, const std::string& label
     // position given is the literal's last byte, the message names where it starts.
     const std::string& lit = sax.error_token();
     const std::size_t start = sax.error_pos() + 1 - std::min(sax.error_pos(), lit.size());
-    throw SceneError(label + ":" + line_col(text, start) + ": number " + lit +
+    throw InputError(label + ":" + line_col(text, start) + ": number " + lit +
                      " is out of range: a double holds magnitudes up to 1.8e308");
   }
   if (auto p = what.find("syntax error"); p != std::string::npos) what = what.substr(p);

@@ -7,21 +7,28 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "core/scene_error.hpp"
+#include "core/input_error.hpp"
 
 namespace pinsim {
 
-/// A location in a JSON file: "scene.json: forces[2].params.k".
+/// A location in a JSON file: "scene.json: forces[2].params.k". `scene` says the file is a
+/// scene: its errors are then SceneError, else InputError (a rubric, a bench config).
 struct Loc {
   std::string file;
   std::string path;
+  bool scene = false;
   Loc operator/(const std::string& key) const {
-    return {file, path.empty() ? key : path + "." + key};
+    return {file, path.empty() ? key : path + "." + key, scene};
   }
-  Loc operator[](std::size_t i) const { return {file, path + "[" + std::to_string(i) + "]"}; }
+  Loc operator[](std::size_t i) const {
+    return {file, path + "[" + std::to_string(i) + "]", scene};
+  }
   std::string str() const { return file + ": " + (path.empty() ? "(top level)" : path); }
-  /// A SceneError at this location: "<file>: <path>: <what>".
-  SceneError error(const std::string& what) const { return SceneError(str() + ": " + what); }
+  /// Throws the input error "<file>: <path>: <what>".
+  [[noreturn]] void fail(const std::string& what) const {
+    if (scene) throw SceneError(str() + ": " + what);
+    throw InputError(str() + ": " + what);
+  }
 };
 
 /// "got <type> <value>" for messages.
@@ -45,10 +52,10 @@ bool read_bool_or(const nlohmann::json& obj, const char* key, bool def, const Lo
 uint64_t read_count_or(const nlohmann::json& obj, const char* key, uint64_t def, const Loc& at);
 
 /// Text that is not JSON at all (a syntax error), as opposed to JSON that breaks a rule
-/// (a duplicate key, too deep, a number out of range), which is a plain SceneError.
-class JsonSyntaxError : public SceneError {
+/// (a duplicate key, too deep, a number out of range), which is a plain InputError.
+class JsonSyntaxError : public InputError {
  public:
-  using SceneError::SceneError;
+  using InputError::InputError;
 };
 
 /// Limits of parse_json_text (documented in README's Scenes section).
@@ -61,7 +68,7 @@ struct JsonLimits {
 /// double's range names file:line:column; a duplicate key, or nesting deeper than
 /// limits.max_depth, names file and JSON path. Nesting is limited while parsing, before
 /// anything recursive (copy, dump, destruction) can meet it. Throws JsonSyntaxError for
-/// text that is not JSON, SceneError for the rest.
+/// text that is not JSON, InputError for the rest.
 nlohmann::json parse_json_text(const std::string& text, const std::string& label,
                                const JsonLimits& limits = {});
 

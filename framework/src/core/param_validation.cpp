@@ -5,7 +5,7 @@
 #include <sstream>
 
 #include "core/format.hpp"
-#include "core/scene_error.hpp"
+#include "core/input_error.hpp"
 
 namespace pinsim {
 namespace {

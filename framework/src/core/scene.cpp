@@ -35,29 +35,28 @@ PluginRef read_plugin_ref(const nlohmann::json& j, const Loc& at, const char* na
   PluginRef r;
   r.where = at.str();
   r.name = read_string_or(j, name_key, "", at);
-  if (r.name.empty()) throw(at / name_key).error("required plugin name is missing");
+  if (r.name.empty()) (at / name_key).fail("required plugin name is missing");
   r.library = read_string_or(j, "library", "", at);
   r.params = j.contains("params") ? j.at("params") : nlohmann::json::object();
-  if (!r.params.is_object())
-    throw(at / "params").error("expected an object, " + describe(r.params));
+  if (!r.params.is_object()) (at / "params").fail("expected an object, " + describe(r.params));
   return r;
 }
 
 void read_particles(const nlohmann::json& list, const Loc& at, ParticleList& out) {
-  if (!list.is_array()) throw at.error("expected an array of particles, " + describe(list));
+  if (!list.is_array()) at.fail("expected an array of particles, " + describe(list));
   for (std::size_t i = 0; i < list.size(); ++i) {
     const auto& p = list[i];
     const Loc pl = at[i];
     require_object(p, pl);
     check_keys(p, {"name", "x", "v", "mass", "radius", "pinned"}, pl);
-    if (!p.contains("x")) throw(pl / "x").error("required position [x, y] is missing");
+    if (!p.contains("x")) (pl / "x").fail("required position [x, y] is missing");
     const Eigen::Vector2d x = read_vec2(p.at("x"), pl / "x");
     const Eigen::Vector2d v = read_vec2_or(p, "v", Eigen::Vector2d::Zero(), pl);
     const bool pinned = read_bool_or(p, "pinned", false, pl);
     const double mass = read_number_or(p, "mass", 1.0, pl);
-    if (!(mass > 0.0)) throw(pl / "mass").error("must be > 0, got " + p.at("mass").dump());
+    if (!(mass > 0.0)) (pl / "mass").fail("must be > 0, got " + p.at("mass").dump());
     const double radius = read_number_or(p, "radius", 0.0, pl);
-    if (!(radius >= 0.0)) throw(pl / "radius").error("must be >= 0, got " + p.at("radius").dump());
+    if (!(radius >= 0.0)) (pl / "radius").fail("must be >= 0, got " + p.at("radius").dump());
     out.add(x, v, pinned ? 0.0 : 1.0 / mass, radius);
   }
 }
@@ -65,17 +64,17 @@ void read_particles(const nlohmann::json& list, const Loc& at, ParticleList& out
 // time: {"dt" > 0, "duration" >= 0}, at most 1e12 steps.
 void read_time(const nlohmann::json& d, const Loc& root, Scene& s) {
   if (!d.contains("time"))
-    throw(root / "time").error("required object {\"dt\", \"duration\"} is missing");
+    (root / "time").fail("required object {\"dt\", \"duration\"} is missing");
   const auto& t = d.at("time");
   require_object(t, root / "time");
   check_keys(t, {"dt", "duration"}, root / "time");
   s.dt = read_number(t, "dt", root / "time");
-  if (!(s.dt > 0.0)) throw(root / "time" / "dt").error("must be > 0, got " + t.at("dt").dump());
+  if (!(s.dt > 0.0)) (root / "time" / "dt").fail("must be > 0, got " + t.at("dt").dump());
   s.duration = read_number(t, "duration", root / "time");
   if (!(s.duration >= 0.0))
-    throw(root / "time" / "duration").error("must be >= 0, got " + t.at("duration").dump());
+    (root / "time" / "duration").fail("must be >= 0, got " + t.at("duration").dump());
   if (s.duration / s.dt > 1e12)
-    throw(root / "time").error("duration / dt is over 1e12 steps; check the units");
+    (root / "time").fail("duration / dt is over 1e12 steps; check the units");
 }
 
 // backend: a name, or {"name", "library", "params"}; "none" if absent.
@@ -96,11 +95,9 @@ std::vector<fs::path> read_plugin_path(const nlohmann::json& d, const Loc& root,
   std::vector<fs::path> out;
   if (!d.contains("plugin_path")) return out;
   const auto& pp = d.at("plugin_path");
-  if (!pp.is_array())
-    throw(root / "plugin_path").error("expected a list of folders, " + describe(pp));
+  if (!pp.is_array()) (root / "plugin_path").fail("expected a list of folders, " + describe(pp));
   for (std::size_t i = 0; i < pp.size(); ++i) {
-    if (!pp[i].is_string())
-      throw(root / "plugin_path")[i].error("expected a folder, " + describe(pp[i]));
+    if (!pp[i].is_string()) (root / "plugin_path")[i].fail("expected a folder, " + describe(pp[i]));
     fs::path p = pp[i].get<std::string>();
     out.push_back(p.is_absolute() ? p : base_dir / p);
   }
@@ -113,20 +110,18 @@ void read_particles_and_bodies(const nlohmann::json& d, const Loc& root, Scene& 
   if (d.contains("particles")) read_particles(d.at("particles"), root / "particles", s.particles);
   if (d.contains("bodies")) {
     const auto& bl = d.at("bodies");
-    if (!bl.is_array())
-      throw(root / "bodies").error("expected an array of bodies, " + describe(bl));
+    if (!bl.is_array()) (root / "bodies").fail("expected an array of bodies, " + describe(bl));
     for (std::size_t i = 0; i < bl.size(); ++i) {
       require_object(bl[i], (root / "bodies")[i]);
       Body b = build_body(bl[i], (root / "bodies")[i].str(), s.particles);
       for (const auto& other : s.bodies)
         if (!b.name.empty() && other.name == b.name)
-          throw((root / "bodies")[i] / "name")
-              .error("a body named '" + b.name + "' already exists");
+          ((root / "bodies")[i] / "name").fail("a body named '" + b.name + "' already exists");
       s.bodies.push_back(std::move(b));
     }
   }
   if (s.particles.size() == 0)
-    throw root.error("the scene has no particles (give \"particles\" or \"bodies\")");
+    root.fail("the scene has no particles (give \"particles\" or \"bodies\")");
 }
 
 // forces: plugin references by "type", with their elements unresolved.
@@ -134,7 +129,7 @@ std::vector<ForceSpec> read_forces(const nlohmann::json& d, const Loc& root) {
   std::vector<ForceSpec> out;
   if (!d.contains("forces")) return out;
   const auto& fl = d.at("forces");
-  if (!fl.is_array()) throw(root / "forces").error("expected an array of forces, " + describe(fl));
+  if (!fl.is_array()) (root / "forces").fail("expected an array of forces, " + describe(fl));
   for (std::size_t i = 0; i < fl.size(); ++i) {
     const Loc fa = (root / "forces")[i];
     require_object(fl[i], fa);
@@ -153,8 +148,7 @@ nlohmann::json read_backend_scene(const nlohmann::json& d, const Loc& root) {
   for (const char* k : {"obstacles", "inputs", "contacts"})
     if (d.contains(k)) out[k] = d.at(k);
   if (out.contains("obstacles") && !out["obstacles"].is_array())
-    throw(root / "obstacles")
-        .error("expected an array of obstacles, " + describe(d.at("obstacles")));
+    (root / "obstacles").fail("expected an array of obstacles, " + describe(d.at("obstacles")));
   return out;
 }
 
@@ -165,7 +159,7 @@ void read_output(const nlohmann::json& d, const Loc& root, Scene& s) {
   require_object(o, root / "output");
   check_keys(o, {"every"}, root / "output");
   s.output_every = read_count_or(o, "every", 1, root / "output");
-  if (s.output_every == 0) throw(root / "output" / "every").error("must be >= 1, got 0");
+  if (s.output_every == 0) (root / "output" / "every").fail("must be >= 1, got 0");
 }
 
 // checks: {"energy_blowup" > 0, "energy_every" >= 1}.
@@ -175,9 +169,9 @@ void read_checks(const nlohmann::json& d, const Loc& root, Scene& s) {
   require_object(c, root / "checks");
   check_keys(c, {"energy_blowup", "energy_every"}, root / "checks");
   s.energy_blowup = read_number_or(c, "energy_blowup", s.energy_blowup, root / "checks");
-  if (!(s.energy_blowup > 0.0)) throw(root / "checks" / "energy_blowup").error("must be > 0");
+  if (!(s.energy_blowup > 0.0)) (root / "checks" / "energy_blowup").fail("must be > 0");
   s.energy_every = read_count_or(c, "energy_every", s.energy_every, root / "checks");
-  if (s.energy_every == 0) throw(root / "checks" / "energy_every").error("must be >= 1, got 0");
+  if (s.energy_every == 0) (root / "checks" / "energy_every").fail("must be >= 1, got 0");
 }
 
 }  // namespace
@@ -185,7 +179,7 @@ void read_checks(const nlohmann::json& d, const Loc& root, Scene& s) {
 void apply_override(nlohmann::json& doc, const std::string& assignment, const std::string& label) {
   const auto eq = assignment.find('=');
   if (eq == std::string::npos || eq == 0)
-    throw SceneError("--set " + assignment + ": expected PATH=VALUE, e.g. time.dt=0.0005");
+    throw InputError("--set " + assignment + ": expected PATH=VALUE, e.g. time.dt=0.0005");
   const std::string path = assignment.substr(0, eq);
   const std::string text = assignment.substr(eq + 1);
   nlohmann::json value;
@@ -195,7 +189,7 @@ void apply_override(nlohmann::json& doc, const std::string& assignment, const st
     value = text;  // a bare word is a string
   }
   const auto keys = split_path(path);
-  if (keys.empty()) throw SceneError("--set " + assignment + ": empty path");
+  if (keys.empty()) throw InputError("--set " + assignment + ": empty path");
   nlohmann::json* cur = &doc;
   std::string walked;
   for (std::size_t k = 0; k < keys.size(); ++k) {
@@ -340,7 +334,7 @@ Scene parse_scene(const std::string& text, const std::string& label, const fs::p
   s.doc = parse_json_text(text, label);
   for (const auto& o : overrides) apply_override(s.doc, o, label);
   const auto& d = s.doc;
-  const Loc root{label, ""};
+  const Loc root{label, "", true};
   require_object(d, root);
   check_keys(d,
              {"$schema", "name", "description", "time", "integrator", "backend", "plugin_path",

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "core/bodies.hpp"
-#include "core/scene_error.hpp"
+#include "core/input_error.hpp"
 
 namespace pinsim {
 
@@ -63,7 +63,8 @@ Scene parse_scene(const std::string& text, const std::string& label,
                   const std::filesystem::path& base_dir,
                   const std::vector<std::string>& overrides = {});
 
-/// Applies one "path=value" override to a document; throws SceneError naming the path.
+/// Applies one "path=value" override to a document; throws InputError (a malformed
+/// assignment) or SceneError (a path the scene does not have) naming the path.
 void apply_override(nlohmann::json& doc, const std::string& assignment, const std::string& label);
 
 }  // namespace pinsim

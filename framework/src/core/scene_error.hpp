@@ -1,15 +1,4 @@
-// The one error type for bad scenes and bad command-line values.
+// SceneError is one kind of InputError; both are declared in input_error.hpp.
 #pragma once
 
-#include <stdexcept>
-#include <string>
-
-namespace pinsim {
-
-/// A bad scene: the message names the file, the JSON path and what was expected.
-class SceneError : public std::runtime_error {
- public:
-  using std::runtime_error::runtime_error;
-};
-
-}  // namespace pinsim
+#include "core/input_error.hpp"

@@ -36,8 +36,8 @@ double positive(const nlohmann::json& j, const char* key, double fallback, const
                 double max) {
   const double v = read_number_or(j, key, fallback, at);
   if (!(v > 0 && v <= max))
-    throw(at / key).error("must be > 0 and <= " + nlohmann::json(max).dump() + ", got " +
-                          nlohmann::json(v).dump());
+    (at / key).fail("must be > 0 and <= " + nlohmann::json(max).dump() + ", got " +
+                    nlohmann::json(v).dump());
   return v;
 }
 
@@ -62,7 +62,7 @@ grading::SandboxLimits read_limits(const nlohmann::json& j, const Loc& at,
 
 Rubric load_rubric(const fs::path& file) {
   std::error_code ec;
-  if (!fs::is_regular_file(file, ec)) throw SceneError(file.string() + ": rubric file not found");
+  if (!fs::is_regular_file(file, ec)) throw InputError(file.string() + ": rubric file not found");
   const nlohmann::json j = parse_json_text(read_text(file), file.string());
   const Loc root{file.string(), ""};
   require_object(j, root);
@@ -75,14 +75,14 @@ Rubric load_rubric(const fs::path& file) {
   r.name = read_string_or(j, "name", file.stem().string(), root);
   r.kind = read_string_or(j, "kind", "force", root);
   if (r.kind != "force" && r.kind != "backend")
-    throw(root / "kind").error("expected \"force\" or \"backend\", got \"" + r.kind + "\"");
+    (root / "kind").fail("expected \"force\" or \"backend\", got \"" + r.kind + "\"");
   if (j.contains("limits")) r.limits = read_limits(j["limits"], root / "limits", r.limits);
   if (j.contains("build_limits"))
     r.build_limits = read_limits(j["build_limits"], root / "build_limits", r.build_limits);
   r.time_budget_seconds = positive(j, "time_budget_seconds", r.time_budget_seconds, root, 1e6);
   r.output_limit_kb = positive(j, "output_limit_kb", r.output_limit_kb, root, 1 << 20);
   if (!j.contains("tests") || !j["tests"].is_array() || j["tests"].empty())
-    throw(root / "tests").error("expected a non-empty array of tests");
+    (root / "tests").fail("expected a non-empty array of tests");
   const auto& checks = r.kind == "force" ? kForceChecks : kBackendChecks;
   for (std::size_t i = 0; i < j["tests"].size(); ++i) {
     const auto& t = j["tests"][i];
@@ -96,23 +96,23 @@ Rubric load_rubric(const fs::path& file) {
     RubricTest rt;
     rt.spec = t;
     rt.name = read_string_or(t, "name", "", at);
-    if (rt.name.empty()) throw(at / "name").error("required test name is missing");
+    if (rt.name.empty()) (at / "name").fail("required test name is missing");
     rt.check = read_string_or(t, "check", "", at);
     if (!checks.count(rt.check)) {
       std::string list;
       for (const auto& c : checks) list += (list.empty() ? "" : ", ") + c;
-      throw(at / "check")
-          .error("unknown check '" + rt.check + "' for a " + r.kind + " rubric (known: " + list +
-                 ")");
+      (at / "check")
+          .fail("unknown check '" + rt.check + "' for a " + r.kind + " rubric (known: " + list +
+                ")");
     }
     rt.plugin = read_string_or(t, "plugin", "", at);
-    if (rt.plugin.empty()) throw(at / "plugin").error("required: the submission's plugin name");
+    if (rt.plugin.empty()) (at / "plugin").fail("required: the submission's plugin name");
     rt.points = read_number_or(t, "points", 1.0, at);
-    if (!(rt.points >= 0)) throw(at / "points").error("must be >= 0");
+    if (!(rt.points >= 0)) (at / "points").fail("must be >= 0");
     rt.visibility = read_string_or(t, "visibility", "visible", at);
     if (rt.visibility != "visible" && rt.visibility != "hidden" &&
         rt.visibility != "after_due_date" && rt.visibility != "after_published")
-      throw(at / "visibility").error("expected visible, hidden, after_due_date or after_published");
+      (at / "visibility").fail("expected visible, hidden, after_due_date or after_published");
     rt.hint = read_string_or(t, "hint", "", at);
     if (t.contains("params")) require_object(t["params"], at / "params");
     if (t.contains("second_opinion_params"))
@@ -122,15 +122,15 @@ Rubric load_rubric(const fs::path& file) {
     for (const char* k : {"tolerance", "trials", "seed"})
       if (t.contains(k)) read_number_or(t, k, 0.0, at);
     if (t.contains("assume_internal") && !t["assume_internal"].is_boolean())
-      throw(at / "assume_internal").error("expected true or false");
+      (at / "assume_internal").fail("expected true or false");
     if ((rt.check == "reference" || rt.check.rfind("backend_", 0) == 0) && !t.contains("reference"))
-      throw(at / "reference").error("required: the reference plugin to compare with");
+      (at / "reference").fail("required: the reference plugin to compare with");
     if ((rt.check == "simulation" || rt.check.rfind("backend_", 0) == 0) && !t.contains("scene"))
-      throw(at / "scene").error("required: the scene file (relative to the rubric)");
+      (at / "scene").fail("required: the scene file (relative to the rubric)");
     if (t.contains("scene")) {
       const fs::path scene = r.file.parent_path() / t["scene"].get<std::string>();
       if (!fs::is_regular_file(scene, ec))
-        throw(at / "scene").error("no such scene file: " + scene.string());
+        (at / "scene").fail("no such scene file: " + scene.string());
     }
     r.tests.push_back(std::move(rt));
   }

@@ -38,7 +38,7 @@ struct Rubric {
   std::vector<RubricTest> tests;
 };
 
-/// Reads and validates a rubric; errors (SceneError) name the file and JSON path.
+/// Reads and validates a rubric; errors (InputError) name the file and JSON path.
 Rubric load_rubric(const std::filesystem::path& file);
 
 }  // namespace pinsim

@@ -112,7 +112,7 @@ json PinballGame::recording(const std::string& scene_file) const {
           {"ball", ball}};
 }
 
-void PinballGame::replay(const json& rec) {
+void PinballGame::rerun(const json& rec) {
   const uint64_t n = rec.at("steps").get<uint64_t>();
   const json& in = rec.at("inputs");
   std::size_t k = 0;

@@ -1,5 +1,5 @@
 // The pinball game behind `pinsim play`: physics at the scene's dt with live inputs, score,
-// ball save, game over, and an input recording that replays to the identical state.
+// ball save, game over, and an input recording that reruns to the identical state.
 // No window code here (that is cli/cmd_play.cpp, with SDL2).
 #pragma once
 
@@ -62,8 +62,8 @@ class PinballGame {
   /// {"scene", "dt", "steps", "inputs": [{"step","input","action"}], "state_hash", "score",
   ///  "balls_left", "game_over", "ball": [x, y]}
   nlohmann::json recording(const std::string& scene_file) const;
-  /// Plays a recording's inputs for its number of steps (the scene must be the same).
-  void replay(const nlohmann::json& recording);
+  /// Reruns a recording's inputs for its number of steps (the scene must be the same).
+  void rerun(const nlohmann::json& recording);
 
  private:
   void serve_ball();

@@ -8,6 +8,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "core/input_error.hpp"
 #include "core/simulation.hpp"
 #include "pictures/cairo_handles.hpp"
 #include "pictures/render_field.hpp"
@@ -266,7 +267,7 @@ PixelMap render_picture(const RenderJob& job, PluginLoader& loader, const Render
                         const fs::path& out) {
   const std::string ext = out.extension().string();
   if (ext != ".png" && ext != ".svg")
-    throw std::runtime_error(out.string() + ": the picture must be a .png or .svg file");
+    throw InputError(out.string() + ": the picture must be a .png or .svg file");
   const bool svg = ext == ".svg";
   // The scene's plugins and backend (for the distance field and the springs).
   std::unique_ptr<Simulation> sim;

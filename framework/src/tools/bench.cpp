@@ -127,7 +127,7 @@ Result run_point(const Case& c, const Point& p, int repeats, PluginLoader& loade
       }
     }
     if (ref && k != ref->size())
-      throw SceneError(c.name + ": dt = " + num(p.dt) + " does not divide the reference's " +
+      throw InputError(c.name + ": dt = " + num(p.dt) + " does not divide the reference's " +
                        "sample_every = " + num(every));
     res.err_max = emax;
     res.err_final = efin;
@@ -186,12 +186,12 @@ int run(const Options& o) {
                Loc{where, "cases"}[ci]);
     Case c;
     c.name = cj.value("name", "case" + std::to_string(ci));
-    if (!cj.contains("scene")) throw SceneError(cw + ".scene: required");
+    if (!cj.contains("scene")) throw InputError(cw + ".scene: required");
     c.doc = sweep::scene_doc(cfg, cj["scene"], c.base);
     c.answer = cj.value("answer", json());
     c.reference = cj.value("reference", json());
     if (c.answer.is_null() == c.reference.is_null())
-      throw SceneError(cw + ": give exactly one of \"answer\" (closed form) or \"reference\"");
+      throw InputError(cw + ": give exactly one of \"answer\" (closed form) or \"reference\"");
     // a misspelt optional key (damping_ratio, floor, ...) would silently change the answer
     const Loc at = Loc{where, "cases"}[ci];
     if (c.answer.is_object()) {

@@ -19,7 +19,7 @@ struct Options {
 
 /// Runs this shard's points, writes OUT/bench[.shard-i-of-N].csv; for a whole sweep also
 /// prints the observed orders and draws the work-precision figures. Returns the exit code
-/// (0; 1 if some point failed numerically). Config errors throw SceneError.
+/// (0; 1 if some point failed numerically). Config errors throw InputError.
 int run(const Options& o);
 
 /// Observed convergence order per (case, backend, integrator) from a bench table, printed

@@ -2,23 +2,23 @@
 
 #include <cmath>
 
-#include "core/scene_error.hpp"
+#include "core/input_error.hpp"
 
 namespace pinsim::bench {
 namespace {
 
 Eigen::Vector2d vec(const nlohmann::json& j, const char* key, const std::string& where) {
   if (!j.contains(key) || !j[key].is_array() || j[key].size() != 2)
-    throw SceneError(where + "." + key + ": expected [x, y]");
+    throw InputError(where + "." + key + ": expected [x, y]");
   return {j[key][0].get<double>(), j[key][1].get<double>()};
 }
 
 double number(const nlohmann::json& j, const char* key, double def, const std::string& where) {
   if (!j.contains(key)) {
-    if (std::isnan(def)) throw SceneError(where + "." + key + ": required number is missing");
+    if (std::isnan(def)) throw InputError(where + "." + key + ": required number is missing");
     return def;
   }
-  if (!j[key].is_number()) throw SceneError(where + "." + key + ": expected a number");
+  if (!j[key].is_number()) throw InputError(where + "." + key + ": expected a number");
   return j[key].get<double>();
 }
 
@@ -34,11 +34,11 @@ double fold(double u, double a, double b) {
 
 Answer::Answer(const nlohmann::json& spec, const State& s, const std::string& where) {
   if (!spec.is_object() || !spec.contains("type") || !spec["type"].is_string())
-    throw SceneError(where + ".type: expected projectile, harmonic, bouncing_ball or ball_in_box");
+    throw InputError(where + ".type: expected projectile, harmonic, bouncing_ball or ball_in_box");
   type_ = spec["type"].get<std::string>();
   const double pi = number(spec, "particle", 0.0, where);
   if (pi < 0 || static_cast<std::size_t>(pi) >= s.size())
-    throw SceneError(where + ".particle: no particle " + std::to_string(pi));
+    throw InputError(where + ".particle: no particle " + std::to_string(pi));
   p_ = static_cast<std::size_t>(pi);
   const auto ip = static_cast<Eigen::Index>(p_);
   x0_ = s.x.col(ip);
@@ -50,21 +50,21 @@ Answer::Answer(const nlohmann::json& spec, const State& s, const std::string& wh
     w_ = number(spec, "omega", NAN, where);
     z_ = number(spec, "damping_ratio", 0.0, where);
     if (!(w_ > 0) || !(z_ >= 0 && z_ < 1))
-      throw SceneError(where + ": need omega > 0 and 0 <= damping_ratio < 1");
+      throw InputError(where + ": need omega > 0 and 0 <= damping_ratio < 1");
     c_ = spec.contains("center") ? vec(spec, "center", where) : Eigen::Vector2d::Zero();
   } else if (type_ == "bouncing_ball") {
     floor_ = number(spec, "floor", 0.0, where);
     gs_ = number(spec, "g", 9.81, where);
     e_ = number(spec, "restitution", 1.0, where);
     if (!(gs_ > 0) || !(e_ > 0 && e_ <= 1))
-      throw SceneError(where + ": need g > 0 and 0 < restitution <= 1");
+      throw InputError(where + ": need g > 0 and 0 < restitution <= 1");
   } else if (type_ == "ball_in_box") {
     lo_ = vec(spec, "min", where) + Eigen::Vector2d::Constant(r_);
     hi_ = vec(spec, "max", where) - Eigen::Vector2d::Constant(r_);
     if (!(hi_.array() > lo_.array()).all())
-      throw SceneError(where + ": the box is smaller than the ball");
+      throw InputError(where + ": the box is smaller than the ball");
   } else {
-    throw SceneError(where + ".type: unknown answer '" + type_ +
+    throw InputError(where + ".type: unknown answer '" + type_ +
                      "' (known: projectile, harmonic, bouncing_ball, ball_in_box; or give "
                      "\"reference\" for a fine reference run)");
   }

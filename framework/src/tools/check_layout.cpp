@@ -90,12 +90,12 @@ CheckLayout topology_layout(const std::string& topology_in, uint32_t arity) {
   if (it == topology_specs().end()) {
     std::string known;
     for (const auto& t : check_topologies()) known += (known.empty() ? "" : ", ") + t;
-    throw SceneError("--topology " + topology + ": unknown topology (known: " + known + ")");
+    throw InputError("--topology " + topology + ": unknown topology (known: " + known + ")");
   }
   const TopologySpec& spec = it->second;
   const auto sets = spec.sets.find(arity);
   if (sets == spec.sets.end())
-    throw SceneError("--topology " + topology + ": has no " + arity_text(arity) +
+    throw InputError("--topology " + topology + ": has no " + arity_text(arity) +
                      " (it has arity 1, 2, 3 and whole bodies)");
   ParticleList particles;
   std::vector<std::string> used;
@@ -123,7 +123,7 @@ CheckLayout topology_layout(const std::string& topology_in, uint32_t arity) {
 
 CheckLayout scene_layout(const Scene& scene, std::size_t index, uint32_t arity) {
   if (index >= scene.forces.size())
-    throw SceneError(scene.label + ": --force-index " + std::to_string(index) + ": the scene has " +
+    throw InputError(scene.label + ": --force-index " + std::to_string(index) + ": the scene has " +
                      std::to_string(scene.forces.size()) + " force(s)");
   const ForceSpec& f = scene.forces[index];
   CheckLayout l;

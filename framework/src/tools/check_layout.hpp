@@ -35,12 +35,12 @@ struct CheckLayout {
 
 /// The layout of a topology ("chain", "ring", "grid", "body"; "" picks chain for a fixed
 /// arity and ring for whole-body plugins) for a plugin of the given arity. Throws
-/// SceneError for an unknown topology or one without elements of that arity.
+/// InputError for an unknown topology or one without elements of that arity.
 CheckLayout topology_layout(const std::string& topology, uint32_t arity);
 
 /// The layout of `scene.forces[index]`: its resolved elements, all the scene's particles,
 /// and its initial state; states are perturbed by a fifth of the mean distance from a
-/// particle to its nearest neighbour. Throws SceneError naming the scene and the force.
+/// particle to its nearest neighbour. Throws InputError naming the scene and the force.
 CheckLayout scene_layout(const Scene& scene, std::size_t index, uint32_t arity);
 
 }  // namespace pinsim

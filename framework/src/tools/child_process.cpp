@@ -6,15 +6,14 @@
 
 #include <cerrno>
 #include <cstdio>
-
-#include "core/scene_error.hpp"
+#include <stdexcept>
 
 namespace pinsim {
 
 Child start_child(const std::vector<std::string>& argv, ChildOutput output) {
   int fds[2] = {-1, -1};
   if (output == ChildOutput::Capture && ::pipe(fds) != 0)
-    throw SceneError("cannot create a pipe to run " + argv[0]);
+    throw std::runtime_error("cannot create a pipe to run " + argv[0]);
   std::fflush(nullptr);  // buffered output would otherwise be written twice
   const pid_t pid = ::fork();
   if (pid < 0) {
@@ -22,7 +21,7 @@ Child start_child(const std::vector<std::string>& argv, ChildOutput output) {
       ::close(fds[0]);
       ::close(fds[1]);
     }
-    throw SceneError("cannot fork to run " + argv[0]);
+    throw std::runtime_error("cannot fork to run " + argv[0]);
   }
   if (pid == 0) {
     if (output == ChildOutput::Capture) {

@@ -24,7 +24,8 @@ struct Child {
 };
 
 /// Starts argv[0] (a path, or a name searched on PATH) with arguments argv. A child that
-/// cannot run the program exits with 127. Throws SceneError if no pipe or process can be made.
+/// cannot run the program exits with 127. Throws std::runtime_error if no pipe or process can be
+/// made.
 Child start_child(const std::vector<std::string>& argv, ChildOutput output);
 
 /// Waits for child `pid`; its exit code, or -1 if it did not exit normally.

@@ -35,7 +35,7 @@ nlohmann::json event_json(const Scene& scene, const pinsim_event& e) {
 
 CrosscheckSpec parse_crosscheck(const Scene& scene) {
   CrosscheckSpec spec;
-  const Loc root{scene.label, ""};
+  const Loc root{scene.label, "", true};
   if (!scene.doc.contains("crosscheck")) return spec;
   const nlohmann::json& c = scene.doc["crosscheck"];
   const Loc at = root / "crosscheck";
@@ -46,7 +46,7 @@ CrosscheckSpec parse_crosscheck(const Scene& scene) {
              at);
   auto positive = [&](const char* key, double def) {
     const double v = read_number_or(c, key, def, at);
-    if (!(v > 0.0)) throw(at / key).error("must be > 0, got " + c.at(key).dump());
+    if (!(v > 0.0)) (at / key).fail("must be > 0, got " + c.at(key).dump());
     return v;
   };
   spec.position_tolerance = positive("position_tolerance", spec.position_tolerance);
@@ -56,15 +56,14 @@ CrosscheckSpec parse_crosscheck(const Scene& scene) {
   spec.velocity_tolerance = positive("velocity_tolerance", spec.velocity_tolerance);
   if (c.contains("min_horizon")) {
     const double h = read_number(c, "min_horizon", at);
-    if (!(h >= 0.0))
-      throw(at / "min_horizon").error("must be >= 0, got " + c.at("min_horizon").dump());
+    if (!(h >= 0.0)) (at / "min_horizon").fail("must be >= 0, got " + c.at("min_horizon").dump());
     spec.min_horizon = h;
   }
   if (c.contains("backends")) {
     const auto& b = c["backends"];
     if (!b.is_array() || b.size() != 2 || !b[0].is_string() || !b[1].is_string())
-      throw(at / "backends")
-          .error("expected two backend names, e.g. [\"sdf\", \"box2d\"], got " + b.dump());
+      (at / "backends")
+          .fail("expected two backend names, e.g. [\"sdf\", \"box2d\"], got " + b.dump());
     spec.backends = {b[0].get<std::string>(), b[1].get<std::string>()};
   }
   if (c.contains("params")) {

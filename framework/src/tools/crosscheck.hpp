@@ -32,7 +32,7 @@ struct CrosscheckSpec {
   std::map<std::string, nlohmann::json> params;
 };
 
-/// Reads scene.doc["crosscheck"]; throws SceneError with the JSON path on bad values.
+/// Reads scene.doc["crosscheck"]; throws InputError with the JSON path on bad values.
 CrosscheckSpec parse_crosscheck(const Scene& scene);
 
 /// One backend's run, sampled every step.

@@ -150,7 +150,7 @@ class Checker {
     if (o.scene != nullptr) {
       const ForceSpec& f = o.scene->forces[o.force_index];
       if (f.name != t_->name)
-        throw SceneError(f.where + ".type: is '" + f.name + "', not the plugin checked ('" +
+        throw InputError(f.where + ".type: is '" + f.name + "', not the plugin checked ('" +
                          t_->name + "')");
       layout_ = scene_layout(*o.scene, o.force_index, t_->arity);
       nlohmann::json params = f.params.is_object() ? f.params : nlohmann::json::object();
@@ -634,7 +634,7 @@ CheckReport check_force_plugin(const LoadedPlugin& plugin, const CheckOptions& o
     throw LoadError(plugin.path.string() + ": '" + plugin.name() +
                     "' is not a force plugin; check-plugin checks force plugins");
   if (opt.scene != nullptr && opt.force_index >= opt.scene->forces.size())
-    throw SceneError(opt.scene->label + ": --force-index " + std::to_string(opt.force_index) +
+    throw InputError(opt.scene->label + ": --force-index " + std::to_string(opt.force_index) +
                      ": the scene has " + std::to_string(opt.scene->forces.size()) + " force(s)");
   TrapsOff traps;
   Checker c(plugin, opt);

@@ -62,7 +62,7 @@ struct CheckReport {
 
 /// Runs every check on a loaded force plugin. Never throws for plugin misbehaviour (errors,
 /// NaNs, wrong shapes become failed checks); throws LoadError if it is not a force plugin
-/// and SceneError for bad `opt.params`. Floating-point traps are off while it runs.
+/// and InputError for bad `opt.params`. Floating-point traps are off while it runs.
 CheckReport check_force_plugin(const LoadedPlugin& plugin, const CheckOptions& opt = {});
 
 /// A readable pass/fail table, one line per check with its worst error.

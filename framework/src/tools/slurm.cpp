@@ -17,7 +17,7 @@
 #include <sstream>
 #include <thread>
 
-#include "core/scene_error.hpp"
+#include "core/input_error.hpp"
 #include "tools/child_process.hpp"
 #include "tools/sweep.hpp"
 
@@ -147,7 +147,7 @@ bool result_complete(const ArrayJob& j, int i, int n) {
     std::stringstream bytes;
     bytes << in.rdbuf();
     return sweep::fingerprint(bytes.str()) == m->csv_hash;
-  } catch (const SceneError&) {
+  } catch (const InputError&) {
     return false;
   }
 }
@@ -163,13 +163,13 @@ std::optional<Submission> read_submission(const ArrayJob& j) {
   if (!in) return std::nullopt;
   const json d = json::parse(in, nullptr, false);
   if (!d.is_object())
-    throw SceneError((slurm_dir(j) / "job.json").string() + ": not valid JSON; remove it");
+    throw InputError((slurm_dir(j) / "job.json").string() + ": not valid JSON; remove it");
   Submission s;
   s.shards = d.value("shards", 0);
   s.command = d.value("command", std::vector<std::string>());
   s.job_of = d.value("jobs", std::vector<std::string>());
   if (s.shards < 1 || static_cast<int>(s.job_of.size()) != s.shards)
-    throw SceneError((slurm_dir(j) / "job.json").string() + ": malformed; remove it");
+    throw InputError((slurm_dir(j) / "job.json").string() + ": malformed; remove it");
   return s;
 }
 
@@ -294,28 +294,28 @@ double now_unix() {
 
 void validate(const Request& r) {
   if (r.shards < 0 || r.shards > 100000)
-    throw SceneError("--shards " + std::to_string(r.shards) + ": expected 1 to 100000");
+    throw InputError("--shards " + std::to_string(r.shards) + ": expected 1 to 100000");
   if (r.cpus < 1 || r.cpus > 4096)
-    throw SceneError("--cpus " + std::to_string(r.cpus) + ": expected 1 to 4096");
+    throw InputError("--cpus " + std::to_string(r.cpus) + ": expected 1 to 4096");
   // Slurm's time forms: M, M:S, H:M:S, D-H, D-H:M, D-H:M:S, or UNLIMITED.
   static const std::regex time_re(
       R"(^(\d+(:\d{1,2}){0,2}|\d+-\d{1,2}(:\d{1,2}){0,2}|UNLIMITED|INFINITE)$)");
   if (!r.time.empty() && !std::regex_match(r.time, time_re))
-    throw SceneError("--time " + r.time +
+    throw InputError("--time " + r.time +
                      ": expected Slurm's form: minutes, MM:SS, HH:MM:SS, D-HH, D-HH:MM or "
                      "D-HH:MM:SS (e.g. 30 or 1:30:00)");
   static const std::regex mem_re(R"(^\d+[KMGT]?$)");
   if (!r.mem.empty() && !std::regex_match(r.mem, mem_re))
-    throw SceneError("--mem " + r.mem +
+    throw InputError("--mem " + r.mem +
                      ": expected a size in MB or with a unit K, M, G, T "
                      "(e.g. 2000 or 2G)");
   static const std::regex part_re(R"(^[A-Za-z0-9_.,-]+$)");
   if (!r.partition.empty() && !std::regex_match(r.partition, part_re))
-    throw SceneError("--partition " + r.partition +
+    throw InputError("--partition " + r.partition +
                      ": expected a partition name (letters, digits, _ . -; several with commas)");
   for (const auto& a : r.sbatch_args)
     if (a.size() < 2 || a[0] != '-' || a.find('\n') != std::string::npos)
-      throw SceneError("--sbatch-arg " + a +
+      throw InputError("--sbatch-arg " + a +
                        ": expected one sbatch option such as --account=phys101");
 }
 
@@ -323,12 +323,12 @@ Outcome run(const ArrayJob& job, const Request& r) {
   validate(r);
   for (const char* tool : {"sbatch", "squeue", "scontrol"})
     if (!on_path(tool))
-      throw SceneError(std::string(tool) +
+      throw InputError(std::string(tool) +
                        " not found on PATH: --slurm needs Slurm's client commands (Debian: "
                        "slurm-client; on a cluster, a login node or `module load slurm`)");
   const std::string out_s = job.out.string();
   if (out_s.find_first_of(" \t\n'\"") != std::string::npos)
-    throw SceneError("--out " + out_s +
+    throw InputError("--out " + out_s +
                      ": with --slurm the output folder's path must not hold "
                      "spaces or quotes (it goes into #SBATCH lines)");
   fs::create_directories(slurm_dir(job));
@@ -340,7 +340,7 @@ Outcome run(const ArrayJob& job, const Request& r) {
   const auto queue = queue_states(script);
   auto queued = [&queue](int i) { return queue && queue->count(i) > 0; };
   if (prev && !queue)
-    throw SceneError(
+    throw InputError(
         "squeue failed, so it is unknown whether shards of the previous "
         "submission in " +
         out_s + " are still queued; try again");
@@ -350,15 +350,15 @@ Outcome run(const ArrayJob& job, const Request& r) {
   std::vector<bool> follow;  // shards this run waits for: (re)submitted now, or still queued
   if (r.resume) {
     if (!prev)
-      throw SceneError("--resume: nothing to resume in " + out_s +
+      throw InputError("--resume: nothing to resume in " + out_s +
                        " (no slurm/job.json); "
                        "submit without --resume first");
     if (r.shards && r.shards != prev->shards)
-      throw SceneError("--resume --shards " + std::to_string(r.shards) + ": " + out_s +
+      throw InputError("--resume --shards " + std::to_string(r.shards) + ": " + out_s +
                        " was submitted with " + std::to_string(prev->shards) +
                        " shards; drop --shards, or start over without --resume");
     if (prev->command != job.command)
-      throw SceneError("--resume: " + out_s +
+      throw InputError("--resume: " + out_s +
                        " was submitted for a different command (config, options or "
                        "program); start over without --resume");
     sub = *prev;
@@ -379,7 +379,7 @@ Outcome run(const ArrayJob& job, const Request& r) {
     if (prev)
       for (int i = 0; i < prev->shards; ++i)
         if (queued(i))
-          throw SceneError(out_s + " has shards of job " + prev->job_of[i] +
+          throw InputError(out_s + " has shards of job " + prev->job_of[i] +
                            " still queued or running; follow them with --resume, or "
                            "`scancel " +
                            prev->job_of[i] + "` first");
@@ -417,7 +417,7 @@ Outcome run(const ArrayJob& job, const Request& r) {
     const std::string id = trim(c.output.substr(0, c.output.find(';')));
     if (c.code != 0 || id.empty() ||
         !std::all_of(id.begin(), id.end(), [](unsigned char ch) { return std::isdigit(ch); }))
-      throw SceneError("sbatch refused the job array (exit " + std::to_string(c.code) +
+      throw InputError("sbatch refused the job array (exit " + std::to_string(c.code) +
                        "): " + trim(c.output));
     for (int i : to_submit) sub.job_of[i] = id;
     o.jobs = id;

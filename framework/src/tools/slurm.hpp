@@ -27,7 +27,7 @@ struct Request {
 inline constexpr int kDefaultShards = 8;
 
 /// Checks the values' forms (--time as Slurm reads it, --mem as digits and a unit, ...);
-/// throws SceneError naming the option and what was expected.
+/// throws InputError naming the option and what was expected.
 void validate(const Request& r);
 
 /// One job array: the command of a shard and where the shards write.
@@ -57,7 +57,7 @@ struct Outcome {
 
 /// Submits the array (with r.resume: resubmits only the shards without a complete result,
 /// and follows the previous submission's shards still queued) and, if r.wait, follows it
-/// until every shard has ended, printing progress. Throws SceneError for bad input (an
+/// until every shard has ended, printing progress. Throws InputError for bad input (an
 /// option, sbatch refusing the job, a resume that does not match the previous submission).
 Outcome run(const ArrayJob& job, const Request& r);
 

@@ -197,7 +197,7 @@ int run(const Options& o) {
     c.pen_tol = cj.value("penetration_tolerance", d.value("penetration_tolerance", 1e-3));
     c.displacement_limit = cj.value("displacement_limit", 0.0);
     if (c.kind != "tunnelling") {
-      if (!cj.contains("scene")) throw SceneError(cw + ".scene: required");
+      if (!cj.contains("scene")) throw InputError(cw + ".scene: required");
       c.doc = sweep::scene_doc(cfg, cj["scene"], c.base);
     } else {
       c.base = cfg.dir;
@@ -206,7 +206,7 @@ int run(const Options& o) {
     std::vector<double> ks = {kNaN}, speeds = {kNaN}, thick = {kNaN};
     if (c.kind == "stiffness") {
       if (!cj.contains("stiffness") || !cj["stiffness"].is_object())
-        throw SceneError(cw + ".stiffness: expected {\"path\": ..., \"values\": [...]}");
+        throw InputError(cw + ".stiffness: expected {\"path\": ..., \"values\": [...]}");
       check_keys(cj["stiffness"], {"path", "values"}, Loc{where, "cases"}[ci] / "stiffness");
       c.stiffness_path = cj["stiffness"].value("path", std::string());
       ks = sweep::numbers(cj["stiffness"].value("values", json()), cw + ".stiffness.values");
@@ -214,7 +214,7 @@ int run(const Options& o) {
       speeds = sweep::numbers(cj.value("speeds", json()), cw + ".speeds");
       thick = sweep::numbers(cj.value("thickness", json()), cw + ".thickness");
     } else if (c.kind != "run") {
-      throw SceneError(cw + ".kind: expected stiffness, tunnelling or run");
+      throw InputError(cw + ".kind: expected stiffness, tunnelling or run");
     }
     for (const json& b : ax.backends)
       for (const std::string& in : ax.integrators)

@@ -13,7 +13,7 @@
 #include <map>
 #include <sstream>
 
-#include "core/scene_error.hpp"
+#include "core/input_error.hpp"
 
 namespace fs = std::filesystem;
 
@@ -34,17 +34,17 @@ Shard parse_shard(const std::string& text) {
     s.count = std::stoi(text.substr(slash + 1), &b);
     if (a != slash || b != text.size() - slash - 1) throw std::invalid_argument("junk");
   } catch (const std::exception&) {
-    throw SceneError("--shard " + text + ": expected i/N, e.g. 0/4 (shard i of N, 0 <= i < N)");
+    throw InputError("--shard " + text + ": expected i/N, e.g. 0/4 (shard i of N, 0 <= i < N)");
   }
   if (s.count < 1 || s.index < 0 || s.index >= s.count)
-    throw SceneError("--shard " + text + ": need N >= 1 and 0 <= i < N");
+    throw InputError("--shard " + text + ": need N >= 1 and 0 <= i < N");
   return s;
 }
 
 std::size_t Table::col(const std::string& name) const {
   for (std::size_t i = 0; i < header.size(); ++i)
     if (header[i] == name) return i;
-  throw SceneError("CSV table has no column '" + name + "'");
+  throw InputError("CSV table has no column '" + name + "'");
 }
 
 namespace {
@@ -86,14 +86,15 @@ void write_atomically(const fs::path& file, const std::string& bytes) {
     if (!out) {
       std::error_code ec;
       fs::remove(tmp, ec);
-      throw SceneError(file.string() + ": cannot be written");
+      throw std::runtime_error(file.string() + ": cannot be written");
     }
   }
   std::error_code ec;
   fs::rename(tmp, file, ec);
   if (ec) {
     fs::remove(tmp, ec);
-    throw SceneError(file.string() + ": cannot be written (rename failed: " + ec.message() + ")");
+    throw std::runtime_error(file.string() + ": cannot be written (rename failed: " + ec.message() +
+                             ")");
   }
 }
 
@@ -146,17 +147,17 @@ std::optional<Manifest> read_manifest(const fs::path& csv) {
     m.rows = j.at("rows").get<std::size_t>();
     m.csv_hash = j.at("csv_hash").get<std::string>();
   } catch (const std::exception& e) {
-    throw SceneError(p.string() + ": not a shard manifest (" + e.what() + ")");
+    throw InputError(p.string() + ": not a shard manifest (" + e.what() + ")");
   }
   return m;
 }
 
 Table Table::read(const fs::path& file) {
   std::ifstream in(file);
-  if (!in) throw SceneError(file.string() + ": cannot be read");
+  if (!in) throw InputError(file.string() + ": cannot be read");
   Table t;
   std::string line;
-  if (!std::getline(in, line)) throw SceneError(file.string() + ": empty, expected a CSV header");
+  if (!std::getline(in, line)) throw InputError(file.string() + ": empty, expected a CSV header");
   t.header = split(line);
   while (std::getline(in, line))
     if (!line.empty()) t.rows.push_back(split(line));
@@ -164,46 +165,46 @@ Table Table::read(const fs::path& file) {
 }
 
 Table merge(const std::vector<fs::path>& files) {
-  if (files.empty()) throw SceneError("merge: no CSV files given");
+  if (files.empty()) throw InputError("merge: no CSV files given");
   Table all;
   std::optional<Manifest> first;
   std::map<int, fs::path> seen;  // shard index -> its file
   for (const fs::path& f : files) {
     std::ifstream probe(f);
-    if (!probe) throw SceneError(f.string() + ": cannot be read");
+    if (!probe) throw InputError(f.string() + ": cannot be read");
     const auto m = read_manifest(f);
     if (!m)
-      throw SceneError(f.string() + ": no shard manifest " + manifest_path(f).filename().string() +
+      throw InputError(f.string() + ": no shard manifest " + manifest_path(f).filename().string() +
                        " beside it (the shard did not finish writing, or it is not a shard "
                        "file); rerun that shard");
     std::stringstream bytes;
     bytes << probe.rdbuf();
     if (fingerprint(bytes.str()) != m->csv_hash)
-      throw SceneError(f.string() +
+      throw InputError(f.string() +
                        ": its bytes differ from its manifest (half rewritten, or "
                        "edited); rerun that shard");
     if (!first) {
       first = m;
     } else if (m->tool != first->tool || m->sweep != first->sweep ||
                m->shard.count != first->shard.count || m->points != first->points) {
-      throw SceneError(f.string() + ": from a different sweep than " + files[0].string() + " (" +
+      throw InputError(f.string() + ": from a different sweep than " + files[0].string() + " (" +
                        m->tool + " " + m->sweep + ", " + std::to_string(m->shard.count) +
                        " shards vs " + first->tool + " " + first->sweep + ", " +
                        std::to_string(first->shard.count) +
                        " shards): a different config, rubric, options or shard count");
     }
     if (seen.count(m->shard.index))
-      throw SceneError(f.string() + ": shard " + std::to_string(m->shard.index) +
+      throw InputError(f.string() + ": shard " + std::to_string(m->shard.index) +
                        " is given twice (also " + seen[m->shard.index].string() + ")");
     seen[m->shard.index] = f;
     Table t = Table::read(f);
     if (t.rows.size() != m->rows)
-      throw SceneError(f.string() + ": " + std::to_string(t.rows.size()) +
+      throw InputError(f.string() + ": " + std::to_string(t.rows.size()) +
                        " rows, its manifest says " + std::to_string(m->rows));
     if (all.header.empty())
       all.header = t.header;
     else if (t.header != all.header)
-      throw SceneError(f.string() + ": its CSV header differs from " + files[0].string() +
+      throw InputError(f.string() + ": its CSV header differs from " + files[0].string() +
                        "'s (a different sweep?)");
     all.rows.insert(all.rows.end(), t.rows.begin(), t.rows.end());
   }
@@ -215,11 +216,11 @@ Table merge(const std::vector<fs::path>& files) {
       ++n_missing;
     }
   if (n_missing)
-    throw SceneError("merge: incomplete set: shard" + std::string(n_missing > 1 ? "s " : " ") +
+    throw InputError("merge: incomplete set: shard" + std::string(n_missing > 1 ? "s " : " ") +
                      missing + " of " + std::to_string(first->shard.count) + " missing (" +
                      first->tool + " sweep " + first->sweep + ")");
   if (all.rows.size() != first->points)
-    throw SceneError("merge: the shards hold " + std::to_string(all.rows.size()) +
+    throw InputError("merge: the shards hold " + std::to_string(all.rows.size()) +
                      " rows, the sweep has " + std::to_string(first->points) + " points");
   const bool numeric = !all.header.empty() && all.header[0] == "point";
   std::stable_sort(all.rows.begin(), all.rows.end(), [numeric](const auto& a, const auto& b) {
@@ -232,16 +233,16 @@ Table merge(const std::vector<fs::path>& files) {
 
 Config load_config(const fs::path& file) {
   std::ifstream in(file);
-  if (!in) throw SceneError(file.string() + ": sweep config not found or unreadable");
+  if (!in) throw InputError(file.string() + ": sweep config not found or unreadable");
   Config c;
   c.file = file;
   c.dir = fs::absolute(file).parent_path();
   try {
     c.doc = nlohmann::json::parse(in, nullptr, true, /*ignore_comments=*/true);
   } catch (const nlohmann::json::parse_error& e) {
-    throw SceneError(file.string() + ": not valid JSON: " + e.what());
+    throw InputError(file.string() + ": not valid JSON: " + e.what());
   }
-  if (!c.doc.is_object()) throw SceneError(file.string() + ": expected a JSON object");
+  if (!c.doc.is_object()) throw InputError(file.string() + ": expected a JSON object");
   return c;
 }
 
@@ -251,15 +252,15 @@ nlohmann::json scene_doc(const Config& cfg, const nlohmann::json& spec, fs::path
     return spec;
   }
   if (!spec.is_string())
-    throw SceneError(cfg.file.string() + ": \"scene\" must be a file name or a scene object");
+    throw InputError(cfg.file.string() + ": \"scene\" must be a file name or a scene object");
   const fs::path p = cfg.dir / spec.get<std::string>();
   std::ifstream in(p);
-  if (!in) throw SceneError(cfg.file.string() + ": scene " + p.string() + " not found");
+  if (!in) throw InputError(cfg.file.string() + ": scene " + p.string() + " not found");
   base_dir = fs::absolute(p).parent_path();
   try {
     return nlohmann::json::parse(in, nullptr, true, true);
   } catch (const nlohmann::json::parse_error& e) {
-    throw SceneError(p.string() + ": not valid JSON: " + e.what());
+    throw InputError(p.string() + ": not valid JSON: " + e.what());
   }
 }
 
@@ -305,11 +306,11 @@ bool run_gnuplot(const fs::path& script) {
 
 std::vector<double> numbers(const nlohmann::json& j, const std::string& where) {
   if (!j.is_array() || j.empty())
-    throw SceneError(where + ": expected a non-empty list of numbers");
+    throw InputError(where + ": expected a non-empty list of numbers");
   std::vector<double> out;
   for (const auto& x : j) {
     if (!x.is_number() || !(x.get<double>() > 0.0))
-      throw SceneError(where + ": expected positive numbers, got " + x.dump());
+      throw InputError(where + ": expected positive numbers, got " + x.dump());
     out.push_back(x.get<double>());
   }
   return out;
@@ -323,7 +324,7 @@ std::vector<nlohmann::json> list_or(const nlohmann::json& a, const nlohmann::jso
 
 const nlohmann::json& cases(const Config& cfg) {
   if (!cfg.doc.contains("cases") || !cfg.doc["cases"].is_array())
-    throw SceneError(cfg.file.string() + ".cases: expected a list of cases");
+    throw InputError(cfg.file.string() + ".cases: expected a list of cases");
   return cfg.doc["cases"];
 }
 

@@ -28,14 +28,14 @@ struct Shard {
   std::string suffix() const;
 };
 
-/// Parses "i/N" (0 <= i < N); throws SceneError with the expected form.
+/// Parses "i/N" (0 <= i < N); throws InputError with the expected form.
 Shard parse_shard(const std::string& text);
 
 /// A CSV table: a header and rows of cells (no quoting needed: cells never hold commas).
 struct Table {
   std::vector<std::string> header;
   std::vector<std::vector<std::string>> rows;
-  /// Index of a column; throws SceneError if missing.
+  /// Index of a column; throws InputError if missing.
   std::size_t col(const std::string& name) const;
   /// The CSV text: header line, then one line per row.
   std::string text() const;
@@ -45,7 +45,8 @@ struct Table {
 };
 
 /// Writes `bytes` to a temporary file beside `file`, then renames it over `file`, so the
-/// file is either the old one or the whole new one. Creates the folder. Throws SceneError.
+/// file is either the old one or the whole new one. Creates the folder. Throws
+/// std::runtime_error if it cannot be written.
 void write_atomically(const std::filesystem::path& file, const std::string& bytes);
 
 /// 64-bit FNV-1a of `bytes` as 16 hex digits: identifies a sweep's inputs or a file's bytes.
@@ -71,10 +72,10 @@ std::filesystem::path manifest_path(const std::filesystem::path& csv);
 /// leaves a manifest that no longer matches, which `merge` refuses.
 void write_shard(const Table& t, const std::filesystem::path& csv, Manifest m);
 
-/// The manifest beside `csv`; nullopt if there is none. Throws SceneError if it is malformed.
+/// The manifest beside `csv`; nullopt if there is none. Throws InputError if it is malformed.
 std::optional<Manifest> read_manifest(const std::filesystem::path& csv);
 
-/// Joins the shard CSVs of one sweep. Refuses (SceneError naming the file and what is wrong)
+/// Joins the shard CSVs of one sweep. Refuses (InputError naming the file and what is wrong)
 /// a shard without a manifest or whose bytes differ from it, shards of different sweeps or
 /// shard counts, a shard given twice, missing shards (named by index), different headers.
 /// Rows are sorted by the first column: numerically when it is "point", else as text.
@@ -106,14 +107,14 @@ double loglog_slope(const std::vector<double>& x, const std::vector<double>& y);
 bool run_gnuplot(const std::filesystem::path& script);
 
 /// A config's non-empty list of positive numbers (dt values, stiffnesses, speeds); throws
-/// SceneError naming `where` otherwise.
+/// InputError naming `where` otherwise.
 std::vector<double> numbers(const nlohmann::json& j, const std::string& where);
 
 /// The list `key` from a case (`a`), else from the config's top level (`b`), else `def`.
 std::vector<nlohmann::json> list_or(const nlohmann::json& a, const nlohmann::json& b,
                                     const char* key, const nlohmann::json& def);
 
-/// The config's "cases"; throws SceneError naming the file if it is not a list.
+/// The config's "cases"; throws InputError naming the file if it is not a list.
 const nlohmann::json& cases(const Config& cfg);
 
 /// What every case of a sweep crosses, backends outermost, dt innermost: each from the case,

@@ -104,6 +104,18 @@ TEST_CASE("cli: bad input gives one error line and a non-zero exit") {
   }
 }
 
+TEST_CASE("cli: a flag the parser refuses is exit 2, naming the flag and what it expects") {
+  // Values CLI11 checks itself (a range, a number) are bad input like an InputError.
+  auto r = pinsim_cli("render " + configs + "/projectile.json --width 10");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output, Contains("--width") && Contains("Value 10 not in range 64 to 8192"));
+  r = pinsim_cli("run " + configs + "/projectile.json --no-such-flag");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output, Contains("--no-such-flag"));
+  r = pinsim_cli("run --help");
+  CHECK(r.code == 0);
+}
+
 TEST_CASE("cli: every shipped scene in configs/ validates") {
   int n = 0;
   for (const auto& e : std::filesystem::directory_iterator(configs)) {

@@ -2,6 +2,7 @@
 // expected, before anything runs.
 #include <catch2/catch.hpp>
 
+#include "core/json_read.hpp"
 #include "core/scene.hpp"
 #include "core/simulation.hpp"
 #include "test_support.hpp"
@@ -201,4 +202,25 @@ TEST_CASE("scene errors: a number beyond a double's range names file, line and c
 TEST_CASE("scene errors: --set with an index too large for any array") {
   REQUIRE_THROWS_WITH(build({"particles[99999999999999999999].x=1"}),
                       Contains("particles has 1 entries, no index '99999999999999999999'"));
+}
+
+TEST_CASE("input errors: a scene's errors are SceneError, other files' InputError") {
+  // One base for every bad input (main maps it to exit 2); SceneError for scene files.
+  const Loc scene{"s.json", "", true}, rubric{"r.json", ""};
+  try {
+    (scene / "time")[0].fail("expected a number");
+    FAIL("no throw");
+  } catch (const SceneError& e) {
+    CHECK(std::string(e.what()) == "s.json: time[0]: expected a number");
+  }
+  try {
+    (rubric / "tests")[2].fail("expected a test");
+    FAIL("no throw");
+  } catch (const SceneError&) {
+    FAIL("a rubric's error is not a SceneError");
+  } catch (const InputError& e) {
+    CHECK(std::string(e.what()) == "r.json: tests[2]: expected a test");
+  }
+  REQUIRE_THROWS_AS(build({}, "{\"time\": 1}"), SceneError);
+  REQUIRE_THROWS_AS(build({"time.dt"}), InputError);  // a malformed --set
 }

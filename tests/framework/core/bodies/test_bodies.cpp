@@ -3,7 +3,7 @@
 #include <cmath>
 
 #include "core/bodies.hpp"
-#include "core/scene_error.hpp"
+#include "core/input_error.hpp"
 
 using pinsim::Body;
 using pinsim::build_body;

@@ -1,6 +1,6 @@
 // Pictures: `pinsim render` (PNG pixels and size, SVG elements), `pinsim replay` (the page in
 // headless Chromium draws the ball where trajectory.csv says) and `pinsim play` (under Xvfb,
-// a recording replays to the same state hash).
+// a recording reruns to the same state hash).
 #include <cairo.h>
 #include <sys/wait.h>
 
@@ -10,6 +10,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <regex>
 
@@ -247,7 +248,7 @@ TEST_CASE(
 }
 
 TEST_CASE(
-    "play: a window under Xvfb with scripted input, and its recording replays to the same "
+    "play: a window under Xvfb with scripted input, and its recording reruns to the same "
     "state hash") {
   if (shell("command -v xvfb-run >/dev/null").code != 0) {
     WARN("SKIPPED: xvfb-run is not installed (scripts/setup.sh installs xvfb)");
@@ -281,17 +282,80 @@ TEST_CASE(
   CHECK(png.is_red(static_cast<int>(map.px(bx)), static_cast<int>(map.py(by))));
   CHECK(png.is_dark(static_cast<int>(map.px(0.22)), static_cast<int>(map.py(0.72))));  // bumper
 
-  // Replaying the recording without a window reaches the identical state.
-  r = pinsim_cli("play --replay " + rec.string());
+  // Rerunning the recording without a window reaches the identical state.
+  r = pinsim_cli("play --rerun " + rec.string());
   INFO(r.output);
   CHECK(r.code == 0);
   CHECK(r.output.find(recording["state_hash"].get<std::string>()) != std::string::npos);
   CHECK(r.output.find("identical") != std::string::npos);
 
-  // A changed recording does not (the check can fail).
+  // A changed recording does not (the check can fail); --replay is --rerun's other name.
   auto changed = recording;
   changed["inputs"][1]["step"] = 3500;  // the plunger released 0.1 s later
   test::write_file(dir / "changed.json", changed.dump());
   r = pinsim_cli("play --replay " + (dir / "changed.json").string());
   CHECK(r.code == 1);
+}
+
+TEST_CASE("render and replay: a folder that is not a readable run is exit 2 naming it") {
+  const fs::path empty = test::temp_dir("not-a-run");
+  auto r = pinsim_cli("render " + empty.string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output.c_str(), Catch::Contains(empty.string() + ": not a run folder (expected "
+                                                                "trajectory.csv in it"));
+  r = pinsim_cli("replay " + empty.string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output.c_str(), Catch::Contains(empty.string() + ": not a run folder (expected "
+                                                                "trajectory.csv in it"));
+  // A run folder whose trajectory.csv is cut off in a row: the file and line are named.
+  const fs::path run = make_run("broken-run");
+  test::write_file(run / "trajectory.csv", "t,particle,x,y,vx,vy\n0,0,0.5\n");
+  for (const std::string cmd : {"render ", "replay "}) {
+    r = pinsim_cli(cmd + run.string() + " " + kView + " --out " + (run / "x.png").string());
+    CAPTURE(cmd);
+    CHECK(r.code == 2);
+    CHECK_THAT(r.output.c_str(), Catch::Contains(run.string() + ": cannot read the run folder: ") &&
+                                     Catch::Contains("trajectory.csv:2: expected 6 numbers"));
+  }
+  r = pinsim_cli("render " + kScene + " --view 1,1,0,0");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output.c_str(), Catch::Contains("--view: expected x0,y0,x1,y1"));
+}
+
+TEST_CASE("play --rerun: a recording that cannot be used is exit 2 naming the file and path") {
+  const fs::path dir = test::temp_dir("bad-recording");
+  const std::string table = PINSIM_SOURCE_DIR "/configs/pinball.json";
+  auto r = pinsim_cli("play --rerun " + (dir / "missing.json").string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output.c_str(),
+             Catch::Contains("--rerun " + (dir / "missing.json").string() +
+                             ": cannot be read (expected a recording written by play --record)"));
+  test::write_file(dir / "cut.json", "{\"steps\": 10,");
+  r = pinsim_cli("play --rerun " + (dir / "cut.json").string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output.c_str(), Catch::Contains((dir / "cut.json").string() + ":1:"));
+  const nlohmann::json good = {{"scene", table},
+                               {"steps", 10},
+                               {"state_hash", "0"},
+                               {"inputs", {{{"step", 0}, {"input", "left"}, {"action", "press"}}}}};
+  const std::vector<std::pair<std::function<void(nlohmann::json&)>, std::string>> cases = {
+      {[](nlohmann::json& j) { j["inputs"][0]["action"] = "hold"; },
+       "rec.json: inputs[0].action: expected \"press\" or \"release\", got string \"hold\""},
+      {[](nlohmann::json& j) { j["inputs"][0]["step"] = -1; },
+       "rec.json: inputs[0].step: expected a non-negative integer, got number -1"},
+      {[](nlohmann::json& j) { j.erase("steps"); }, "rec.json: steps: required step count"},
+      {[](nlohmann::json& j) { j["inputs"] = 3; }, "rec.json: inputs: expected a list of inputs"},
+      {[](nlohmann::json& j) { j.erase("scene"); }, "rec.json: scene: required scene file"}};
+  for (const auto& [change, message] : cases) {
+    nlohmann::json rec = good;
+    change(rec);
+    test::write_file(dir / "rec.json", rec.dump());
+    r = pinsim_cli("play --rerun " + (dir / "rec.json").string());
+    CAPTURE(rec.dump());
+    CHECK(r.code == 2);
+    CHECK_THAT(r.output.c_str(), Catch::Contains(message));
+  }
+  // The good one reruns (its made-up hash differs: exit 1), also under the option's other name.
+  test::write_file(dir / "rec.json", good.dump());
+  CHECK(pinsim_cli("play --replay " + (dir / "rec.json").string()).code == 1);
 }

@@ -125,6 +125,24 @@ TEST_CASE("bench --shard i/N and merge reproduce the unsharded errors") {
   CHECK_THAT(bad.output, Catch::Contains("nope.csv"));
 }
 
+TEST_CASE("bench: a bad --shard value is exit 2 naming the flag and the form expected") {
+  const fs::path dir = pinsim::test::temp_dir("bad-shard");
+  pinsim::test::write_file(dir / "osc.json", kBench);
+  const std::string bench =
+      "-q bench " + (dir / "osc.json").string() + " --out " + (dir / "out").string();
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"half", "--shard half: expected i/N, e.g. 0/4 (shard i of N, 0 <= i < N)"},
+      {"3/3", "--shard 3/3: need N >= 1 and 0 <= i < N"},
+      {"0/0", "--shard 0/0: need N >= 1 and 0 <= i < N"}};
+  for (const auto& [shard, message] : cases) {
+    const auto r = pinsim_cli(bench + " --shard " + shard);
+    INFO(r.output);
+    CHECK(r.code == 2);
+    CHECK_THAT(r.output, Catch::Contains(message));
+  }
+  CHECK(!fs::exists(dir / "out"));  // nothing ran
+}
+
 TEST_CASE("stress: spring and bending stability limits bracket theory") {
   // Theory for x'' = -w^2 x, y = h w: symplectic Euler and velocity Verlet stable iff y < 2,
   // RK4 iff y <= 2 sqrt 2, explicit Euler never (|amplification|^2 = 1 + y^2), implicit
