@@ -1,4 +1,4 @@
-// RestCache: the sdf backend's particle steps that ended at rest, replayed when the same
+// RestCache: the sdf backend's particle steps that ended at rest, reused when the same
 // input comes again and nothing that moves can have changed the result (see README).
 #pragma once
 
@@ -12,7 +12,7 @@
 
 namespace pinsim::sdf {
 
-/// What a march looked at, to decide whether its result can be replayed (see README).
+/// What a march looked at, to decide whether its result can be reused (see README).
 struct RestProbe {
   Vec2 x0{0.0, 0.0};        ///< start point
   double reach = 0.0;       ///< farthest query point from x0, squared
@@ -29,7 +29,7 @@ struct RestRecord {
   Vec2 x_in, v_in, x_out, v_out;
   double r = 0.0, dt = 0.0;
   double reach = 0.0, d_max = 0.0, speed = 0.0;
-  SdfStats delta;         ///< counters the step added
+  SdfStats added;         ///< counters the step added
   uint64_t epoch = 0;     ///< the still epoch of the step, if it relied on one
   bool in_epoch = false;  ///< a moving obstacle was near: valid only in that epoch
 };
@@ -65,8 +65,8 @@ class RestCache {
     return nullptr;
   }
   /// True if record m (found for this step's input) gives this step's result.
-  bool replayable(const RestRecord& m, const ObstacleField& field,
-                  const std::vector<double>& speed_bound, double depth_min) const {
+  bool reusable(const RestRecord& m, const ObstacleField& field,
+                const std::vector<double>& speed_bound, double depth_min) const {
     return m.in_epoch ? still_ && m.epoch == still_epoch_
                       : far_from_moving(m, field, speed_bound, depth_min);
   }
@@ -80,7 +80,7 @@ class RestCache {
   static bool same(const Vec2& a, const Vec2& b) { return a.x() == b.x() && a.y() == b.y(); }
 
   // True if no moving obstacle can reach the points m's step queried, in this step.
-  // A replayed step must compute exactly what the march would. The march's result depends on
+  // A reused step must compute exactly what the march would. The march's result depends on
   // time only through moving obstacles: their distance in nearest() and their speed in the
   // Lipschitz bound. For every moving obstacle k, lower_bound(k, .) is 1-Lipschitz and time
   // independent, so at every point the recorded step queried (within `reach` of x_in)
@@ -92,7 +92,7 @@ class RestCache {
   // (every speed bound over the step 0), each obstacle's distance, gradient and velocity (0)
   // come from its standing timeline segment and do not depend on the time, so the march is
   // a pure function of its input and of those segments. A record made in such a step is
-  // replayed only in a step of the same still epoch (the same segments, nothing moving).
+  // reused only in a step of the same still epoch (the same segments, nothing moving).
   static bool far_from_moving(const RestRecord& m, const ObstacleField& field,
                               const std::vector<double>& speed_bound, double depth_min) {
     for (uint32_t k : field.moving()) {

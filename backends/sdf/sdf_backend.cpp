@@ -54,8 +54,8 @@ PluginInfo SdfBackend::info() {
 
 SdfBackend::SdfBackend(const CreateContext& ctx) {
   const Params& p = ctx.params;
-  delta_ = p.real("depth_min");
-  tol_ = p.real("march_tolerance") * delta_;
+  depth_min_ = p.real("depth_min");
+  tol_ = p.real("march_tolerance") * depth_min_;
   max_collisions_ = static_cast<int>(p.integer("max_collisions"));
   max_iterations_ = static_cast<int>(p.integer("max_iterations"));
   rest_speed_ = p.real("rest_speed");
@@ -130,7 +130,7 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
     double u_max = 0.0;
     for (uint32_t k : moving) {
       const double uk = speed_bound_[k];
-      if (uk > 0.0 && field_.lower_bound(k, x) - r - delta_ <= (speed + uk) * remaining)
+      if (uk > 0.0 && field_.lower_bound(k, x) - r - depth_min_ <= (speed + uk) * remaining)
         u_max = std::max(u_max, uk);
     }
     if (probe) {
@@ -143,9 +143,9 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
     }
     const double lip = speed + u_max;
     if (!(lip > 0.0)) return true;  // nothing moves relative to anything
-    if (d > delta_ + tol_) {
+    if (d > depth_min_ + tol_) {
       in_band = false;
-      const double step = (d - delta_) / lip;
+      const double step = (d - depth_min_) / lip;
       if (step >= remaining) {
         if (first) ++stats_.skipped;
         x += v * remaining;
@@ -168,10 +168,10 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
     double vn = vr.dot(n);
     // approaching, beyond rounding of an earlier impulse
     auto approaching = [&] { return vn < -1e-12 * (v.norm() + u.norm()); };
-    if (approaching() && d > delta_) {
+    if (approaching() && d > depth_min_) {
       // The march stopped up to tol above the offset: move on to the time of impact by
       // the linear estimate (d - depth_min) / -vn, never more than the safe step d / L.
-      const double s = std::min({(d - delta_) / -vn, d / lip, remaining});
+      const double s = std::min({(d - depth_min_) / -vn, d / lip, remaining});
       x += v * s;
       t += s;
       remaining -= s;
@@ -211,14 +211,14 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
         e.vn_after = (v - u).dot(n);
         ev.emit(e);
       }
-      if (dc < delta_) x += (delta_ - dc) * n;       // back to the contact offset
-      if (u_max == 0.0 && v.squaredNorm() == 0.0) {  // at rest, nothing nearby moves
+      if (dc < depth_min_) x += (depth_min_ - dc) * n;  // back to the contact offset
+      if (u_max == 0.0 && v.squaredNorm() == 0.0) {     // at rest, nothing nearby moves
         if (probe) probe->at_rest = resting && b.collisions == 1;
         return true;
       }
       continue;
     }
-    double step = std::max(dc, delta_) / lip;
+    double step = std::max(dc, depth_min_) / lip;
     if (step < remaining) step = std::max(step, slide_step(k, x, v, r, remaining, lip));
     if (step >= remaining) {
       x += v * remaining;
@@ -240,10 +240,10 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
 // not apply; only tried when it saves a few of the short steps.
 double SdfBackend::slide_step(std::size_t k, const Vec2& x, const Vec2& v, double r,
                               double remaining, double lip) const {
-  if (field_.obstacle(k).motion != MotionType::kStatic || remaining * lip < 4.0 * delta_)
+  if (field_.obstacle(k).motion != MotionType::kStatic || remaining * lip < 4.0 * depth_min_)
     return 0.0;
-  if (!(field_.segment_lower_bound(k, x, x + v * remaining) - r >= 0.5 * delta_)) return 0.0;
-  const double c = field_.clearance_except(k, x) - r - delta_;
+  if (!(field_.segment_lower_bound(k, x, x + v * remaining) - r >= 0.5 * depth_min_)) return 0.0;
+  const double c = field_.clearance_except(k, x) - r - depth_min_;
   return c > 0.0 ? std::min(remaining, c / lip) : 0.0;
 }
 
@@ -387,15 +387,14 @@ void SdfBackend::schedule_pairs(const MutableState& s, double dt, EventSink& ev)
 // the same obstacles in reach: the same output and counters as the recorded step.
 // Otherwise the march, with a probe of what it looked at; a step that ended at rest on
 // static obstacles, or while nothing moves, is recorded.
-[[gnu::always_inline]] inline void SdfBackend::march_or_replay(std::size_t i, MutableState& s,
-                                                               double t0, double dt,
-                                                               EventSink& ev) {
+[[gnu::always_inline]] inline void SdfBackend::march_or_reuse(std::size_t i, MutableState& s,
+                                                              double t0, double dt, EventSink& ev) {
   Vec2 x = s.x.col(i), v = s.v.col(i);
   const double r = s.radius[i];
   const RestRecord* hit = rest_.find(i, x, v, r, dt);
-  if (hit != nullptr && rest_.replayable(*hit, field_, speed_bound_, delta_)) {
-    add(stats_, hit->delta);
-    ++stats_.replays;
+  if (hit != nullptr && rest_.reusable(*hit, field_, speed_bound_, depth_min_)) {
+    add(stats_, hit->added);
+    ++stats_.reuses;
     s.x.col(i) = hit->x_out;
     s.v.col(i) = hit->v_out;
     return;
@@ -431,7 +430,7 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
     if (pairs)
       march_with_changes(i, s, t0, dt, ev);
     else
-      march_or_replay(i, s, t0, dt, ev);
+      march_or_reuse(i, s, t0, dt, ev);
   }
 }
 

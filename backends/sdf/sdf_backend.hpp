@@ -32,7 +32,7 @@ class SdfBackend {
 
   const SdfStats& stats() const { return stats_; }
   const ObstacleField& field() const { return field_; }
-  double depth_min() const { return delta_; }
+  double depth_min() const { return depth_min_; }
   double march_tolerance() const { return tol_; }
 
  private:
@@ -59,9 +59,9 @@ class SdfBackend {
   ObstacleMotion bound_moving_obstacles(double t0, double dt);
   /// Particle i of s through the step with the velocity changes of its pair contacts.
   void march_with_changes(std::size_t i, MutableState& s, double t0, double dt, EventSink& ev);
-  /// Particle i of s through the step without pair contacts: replayed from the rest cache
+  /// Particle i of s through the step without pair contacts: reused from the rest cache
   /// when it can be, else marched (and remembered if it ended at rest).
-  void march_or_replay(std::size_t i, MutableState& s, double t0, double dt, EventSink& ev);
+  void march_or_reuse(std::size_t i, MutableState& s, double t0, double dt, EventSink& ev);
   /// Forgets what the steps so far learned about the timelines (speed bounds, segment
   /// hints, still epochs, rest records), as a newly created backend has.
   void reset_timeline_caches();
@@ -69,8 +69,8 @@ class SdfBackend {
   void schedule_pairs(const MutableState& s, double dt, EventSink& ev);
 
   ObstacleField field_;
-  double delta_ = 1e-5;  ///< contact offset ("depthMin"), scene length
-  double tol_ = 1e-6;    ///< march tolerance above the offset, scene length
+  double depth_min_ = 1e-5;  ///< contact offset ("depthMin"), scene length
+  double tol_ = 1e-6;        ///< march tolerance above the offset, scene length
   int max_collisions_ = 16;
   int max_iterations_ = 200;
   double rest_speed_ = 0.0;

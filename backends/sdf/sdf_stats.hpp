@@ -13,7 +13,7 @@ struct SdfStats {
   uint64_t contacts = 0;        ///< obstacle impulses (including resting contacts)
   uint64_t pair_contacts = 0;   ///< particle-particle impulses
   uint64_t cap_hits = 0;        ///< steps that hit max_collisions or max_iterations
-  uint64_t replays = 0;  ///< particle steps at rest repeated from the previous result (README)
+  uint64_t reuses = 0;          ///< particle steps at rest reused from a recorded result (README)
 };
 
 /// Counter by counter a - b (what a stretch of work added).
@@ -24,7 +24,7 @@ inline SdfStats operator-(const SdfStats& a, const SdfStats& b) {
           a.contacts - b.contacts,
           a.pair_contacts - b.pair_contacts,
           a.cap_hits - b.cap_hits,
-          a.replays - b.replays};
+          a.reuses - b.reuses};
 }
 
 /// Counter by counter a += b.
@@ -35,7 +35,7 @@ inline void add(SdfStats& a, const SdfStats& b) {
   a.contacts += b.contacts;
   a.pair_contacts += b.pair_contacts;
   a.cap_hits += b.cap_hits;
-  a.replays += b.replays;
+  a.reuses += b.reuses;
 }
 
 }  // namespace pinsim::sdf

@@ -30,7 +30,7 @@ double triangle(double a, double b, double x0, double v, double t) {
 }
 
 /// One step of `a` (a backend that keeps its records between steps) and of a fresh backend
-/// from the previous fresh state `b` (which cannot replay anything): every particle's
+/// from the previous fresh state `b` (which cannot reuse anything): every particle's
 /// position and velocity must agree to the bit. `b` becomes the fresh state.
 void step_against_fresh(Sim& a, std::vector<Ball>& b, const json& scene, const json& par, double dt,
                         const Vec2& g) {
@@ -413,9 +413,9 @@ TEST_CASE("bumper kick and Coulomb friction change the velocity by the closed fo
   CHECK(sim.events[0].point[1] == Approx(0.0).margin(1e-12));
 }
 
-TEST_CASE("replayed resting steps equal fresh ones, and a slider that can reach stops them") {
+TEST_CASE("reused resting steps equal fresh ones, and a slider that can reach stops them") {
   // Two balls at rest on a floor; at t = 0.1 s a slider starts towards the first and pushes
-  // it away; the second is out of its reach. One backend (which replays resting steps)
+  // it away; the second is out of its reach. One backend (which reuses resting steps)
   // against a fresh backend every step (which cannot): they must agree to the bit.
   const double g = 9.81, r = 0.01, dt = 1e-3;
   const json scene = {
@@ -432,19 +432,19 @@ TEST_CASE("replayed resting steps equal fresh ones, and a slider that can reach 
   Sim a(scene, start, par);
   std::vector<Ball> b = start;
   for (int n = 0; n < 600; ++n) step_against_fresh(a, b, scene, par, dt, Vec2(0, -g));
-  // the second ball's steps are replays once its resting position has cycled through its
+  // the second ball's steps are reuses once its resting position has cycled through its
   // few rounding values; the first ball's never are (the slider can reach it)
-  CHECK(a.backend->stats().replays >= 590);
+  CHECK(a.backend->stats().reuses >= 590);
   CHECK(a.pos(0).x() > 0.05);  // pushed
   CHECK(a.pos(1).x() == 0.8);
 }
 
-TEST_CASE("resting on a moving obstacle that stands still is replayed, and stops when it moves") {
+TEST_CASE("resting on a moving obstacle that stands still is reused, and stops when it moves") {
   // A ball lifted by a platform (slider) and a ball dropped on a raised flipper, both
   // e = 0: once the platform has stopped and the flipper is up they rest on moving
-  // obstacles that stand still, and their steps are replayed (a still epoch); at t = 0.6 s
+  // obstacles that stand still, and their steps are reused (a still epoch); at t = 0.6 s
   // both are released and the balls must follow them down. Against a fresh backend every
-  // step (which cannot replay): equal to the bit.
+  // step (which cannot reuse): equal to the bit.
   const double g = 9.81, r = 0.01, dt = 1e-3;
   const json still = {{"restitution", 0.0}};
   const json scene = {
@@ -473,19 +473,19 @@ TEST_CASE("resting on a moving obstacle that stands still is replayed, and stops
                                    {Vec2(0.6, 0.05), Vec2::Zero(), r}};
   Sim a(scene, start, par);
   std::vector<Ball> b = start;
-  uint64_t replays_at_release = 0;
+  uint64_t reuses_at_release = 0;
   Vec2 rest0, rest1;
   for (int n = 0; n < 800; ++n) {
     step_against_fresh(a, b, scene, par, dt, Vec2(0, -g));
     if (n == 599) {
-      replays_at_release = a.backend->stats().replays;
+      reuses_at_release = a.backend->stats().reuses;
       rest0 = a.pos(0);
       rest1 = a.pos(1);
     }
   }
-  // both rest from well before 0.4 s: at least 2 x 200 replayed steps before the release
-  INFO("replays before the release " << replays_at_release);
-  CHECK(replays_at_release >= 400);
+  // both rest from well before 0.4 s: at least 2 x 200 reused steps before the release
+  INFO("reuses before the release " << reuses_at_release);
+  CHECK(reuses_at_release >= 400);
   // resting on top of the raised platform (y = 0.1 + 0.01 + r) and on the flat flipper
   CHECK(rest0.y() == Approx(0.12).margin(1e-4));
   CHECK(rest1.y() == Approx(0.02).margin(1e-4));
