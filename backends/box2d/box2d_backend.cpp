@@ -5,7 +5,7 @@
 #include <numbers>
 #include <sstream>
 
-#include "json_in.hpp"
+#include "contact_options.hpp"
 #include "shape_builder.hpp"
 
 namespace pinsim::box2d {
@@ -33,26 +33,6 @@ std::string num(double x) {
   o.precision(4);
   o << x;
   return o.str();
-}
-
-/// The scene's "contacts" object.
-struct ContactOptions {
-  bool particles = false;    ///< particle-particle contacts on
-  double restitution = 1.0;  ///< their restitution
-};
-
-// "contacts": {"particles", "restitution" in [0, 1]}, if the scene has it.
-ContactOptions read_contacts(const CreateContext& ctx) {
-  ContactOptions out;
-  if (ctx.scene.is_object() && ctx.scene.contains("contacts") && !ctx.scene["contacts"].is_null()) {
-    const sdf::JsonIn scene(ctx.scene, "", ctx.context);
-    const sdf::JsonIn c = scene.object("contacts");
-    c.only({"particles", "restitution"});
-    out.particles = c.boolean("particles", false);
-    out.restitution = c.number_if(
-        "restitution", 1.0, [](double x) { return x >= 0.0 && x <= 1.0; }, "must be in [0, 1]");
-  }
-  return out;
 }
 
 // Length scale: Box2D 2.4.1 is tuned for moving objects of 0.1 to 10 units (slop
@@ -271,7 +251,7 @@ Box2dBackend::Box2dBackend(const CreateContext& ctx) {
   // The sdf backend's parser validates the whole obstacle format (same errors, same paths)
   // and provides the scripted motion timelines.
   field_ = sdf::ObstacleField(ctx.scene, ctx.context, {}, 0);
-  const ContactOptions contacts = read_contacts(ctx);
+  const sdf::ContactOptions contacts = sdf::read_contacts(ctx);
   particle_contacts_ = contacts.particles;
   particle_e_ = contacts.restitution;
   scale_ = choose_length_scale(ctx, field_, p.real("length_scale"));

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "contact_options.hpp"
+
 namespace pinsim::sdf {
 
 PluginInfo SdfBackend::info() {
@@ -62,14 +64,9 @@ SdfBackend::SdfBackend(const CreateContext& ctx) {
   std::vector<Vec2> pts;
   for (std::size_t i = 0; i < ctx.initial.n; ++i) pts.push_back(ctx.initial.x.col(i));
   field_ = ObstacleField(ctx.scene, ctx.context, pts, p.integer("grid_cells"));
-  if (ctx.scene.is_object() && ctx.scene.contains("contacts") && !ctx.scene["contacts"].is_null()) {
-    const JsonIn scene(ctx.scene, "", ctx.context);
-    const JsonIn c = scene.object("contacts");
-    c.only({"particles", "restitution"});
-    particle_contacts_ = c.boolean("particles", false);
-    particle_e_ = c.number_if(
-        "restitution", 1.0, [](double x) { return x >= 0.0 && x <= 1.0; }, "must be in [0, 1]");
-  }
+  const ContactOptions contacts = read_contacts(ctx);
+  particle_contacts_ = contacts.particles;
+  particle_e_ = contacts.restitution;
   reset_timeline_caches();
 }
 

@@ -193,6 +193,17 @@ TEST_CASE("features Box2D cannot express are errors naming the obstacle and feat
   }
 }
 
+TEST_CASE("a bad contacts block is the same error on box2d as on sdf (one parser)") {
+  const std::string ball = R"({"x": [0, 0], "v": [1, 0], "mass": 1, "radius": 0.05})";
+  std::string text = scene_text("[]", ball);
+  text.insert(text.size() - 1, R"(, "contacts": {"particles": true, "restitution": 1.5})");
+  std::string on_sdf = text;
+  on_sdf.replace(on_sdf.find("\"box2d\""), 7, "\"sdf\"");
+  const std::string e = error_of(text);
+  CHECK_THAT(e, Contains("bad.json: contacts.restitution: must be in [0, 1], got 1.5"));
+  CHECK(e == error_of(on_sdf));
+}
+
 // Box2D 2.4.1 caps each step's travel at b2_maxTranslation = 2 units and would silently
 // slow a faster body. At r = 0.05 the automatic scale is 1 / r = 20 units per metre; at
 // 30 m/s and dt = 0.01 a step is 0.3 m = 6 units: an error. With length_scale 5 a step is
