@@ -6,6 +6,7 @@
 #include <cstring>
 
 #include "core/instances.hpp"
+#include "pictures/cairo_handles.hpp"
 
 namespace pinsim {
 using nlohmann::json;
@@ -109,14 +110,34 @@ void stroke_segments(cairo_t* cr, const std::vector<Segment>& segs) {
   cairo_stroke(cr);
 }
 
-/// Paints an image of g's samples, scaled to pixels.
-void paint_grid_image(cairo_t* cr, const FieldGrid& g, cairo_surface_t* img) {
+/// Paints an image of g's samples, one image pixel per sample, scaled to pixels; the
+/// sample (i, j) has the premultiplied ARGB colour pixel(i, j).
+template <class PixelFn>
+void paint_samples(cairo_t* cr, const FieldGrid& g, PixelFn pixel) {
+  const CairoSurface img = image_surface(g.nx, g.ny);
+  cairo_surface_flush(img.get());
+  unsigned char* data = cairo_image_surface_get_data(img.get());
+  const int stride = cairo_image_surface_get_stride(img.get());
+  for (int j = 0; j < g.ny; ++j) {
+    auto* row = reinterpret_cast<uint32_t*>(data + static_cast<std::ptrdiff_t>(j) * stride);
+    for (int i = 0; i < g.nx; ++i) row[i] = pixel(i, j);
+  }
+  cairo_surface_mark_dirty(img.get());
   cairo_save(cr);
   cairo_scale(cr, g.step, g.step);
-  cairo_set_source_surface(cr, img, 0, 0);
+  cairo_set_source_surface(cr, img.get(), 0, 0);
   cairo_pattern_set_filter(cairo_get_source(cr),
                            g.step == 1 ? CAIRO_FILTER_NEAREST : CAIRO_FILTER_BILINEAR);
   cairo_paint(cr);
+  cairo_restore(cr);
+}
+
+/// Strokes the surface (g's zero contour) in near black, `width` pixels wide.
+void stroke_surface(cairo_t* cr, const FieldGrid& g, double width) {
+  cairo_save(cr);
+  cairo_set_source_rgb(cr, 0.05, 0.06, 0.10);
+  cairo_set_line_width(cr, width);
+  stroke_segments(cr, contour(g, 0.0));
   cairo_restore(cr);
 }
 
@@ -125,30 +146,20 @@ void paint_grid_image(cairo_t* cr, const FieldGrid& g, cairo_surface_t* img) {
 void draw_field(cairo_t* cr, const PixelMap& map, const FieldGrid& g, double spacing,
                 bool contours) {
   const double world_per_sample = g.step / map.scale;
-  cairo_surface_t* img = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, g.nx, g.ny);
-  cairo_surface_flush(img);
-  unsigned char* data = cairo_image_surface_get_data(img);
-  const int stride = cairo_image_surface_get_stride(img);
-  for (int j = 0; j < g.ny; ++j) {
-    auto* row = reinterpret_cast<uint32_t*>(data + static_cast<std::ptrdiff_t>(j) * stride);
-    for (int i = 0; i < g.nx; ++i) {
-      double c[3];
-      const double d = g.at(i, j);
-      shade(d, spacing, c);
-      // Antialias the surface itself: blend the two sides over one sample.
-      if (std::isfinite(d) && std::abs(d) < world_per_sample) {
-        double in[3], out[3];
-        shade(-1e-12, spacing, in);
-        shade(1e-12, spacing, out);
-        const double w = 0.5 + 0.5 * d / world_per_sample;
-        for (int k = 0; k < 3; ++k) c[k] = w * out[k] + (1 - w) * in[k];
-      }
-      row[i] = argb(1, c[0], c[1], c[2]);
+  paint_samples(cr, g, [&](int i, int j) {
+    double c[3];
+    const double d = g.at(i, j);
+    shade(d, spacing, c);
+    // Antialias the surface itself: blend the two sides over one sample.
+    if (std::isfinite(d) && std::abs(d) < world_per_sample) {
+      double in[3], out[3];
+      shade(-1e-12, spacing, in);
+      shade(1e-12, spacing, out);
+      const double w = 0.5 + 0.5 * d / world_per_sample;
+      for (int k = 0; k < 3; ++k) c[k] = w * out[k] + (1 - w) * in[k];
     }
-  }
-  cairo_surface_mark_dirty(img);
-  paint_grid_image(cr, g, img);
-  cairo_surface_destroy(img);
+    return argb(1, c[0], c[1], c[2]);
+  });
 
   cairo_save(cr);
   cairo_set_line_cap(cr, CAIRO_LINE_CAP_ROUND);
@@ -170,39 +181,23 @@ void draw_field(cairo_t* cr, const PixelMap& map, const FieldGrid& g, double spa
       }
     }
   }
-  cairo_set_source_rgb(cr, 0.05, 0.06, 0.10);
-  cairo_set_line_width(cr, 1.6);
-  stroke_segments(cr, contour(g, 0.0));
+  stroke_surface(cr, g, 1.6);
   cairo_restore(cr);
 }
 
 void draw_solid(cairo_t* cr, const FieldGrid& g, double r, double gr, double b) {
-  cairo_surface_t* img = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, g.nx, g.ny);
-  cairo_surface_flush(img);
-  unsigned char* data = cairo_image_surface_get_data(img);
-  const int stride = cairo_image_surface_get_stride(img);
   // Coverage from the distance in samples, estimated from the local gradient.
-  for (int j = 0; j < g.ny; ++j) {
-    auto* row = reinterpret_cast<uint32_t*>(data + static_cast<std::ptrdiff_t>(j) * stride);
-    for (int i = 0; i < g.nx; ++i) {
-      const double d = g.at(i, j);
-      double a = d < 0 ? 1.0 : 0.0;
-      if (std::isfinite(d) && i + 1 < g.nx && j + 1 < g.ny) {
-        const double gx = g.at(i + 1, j) - d, gy = g.at(i, j + 1) - d;
-        const double gn = std::hypot(gx, gy);
-        if (gn > 0 && std::isfinite(gn)) a = std::clamp(0.5 - d / gn, 0.0, 1.0);
-      }
-      row[i] = argb(a, r, gr, b);
+  paint_samples(cr, g, [&](int i, int j) {
+    const double d = g.at(i, j);
+    double a = d < 0 ? 1.0 : 0.0;
+    if (std::isfinite(d) && i + 1 < g.nx && j + 1 < g.ny) {
+      const double gx = g.at(i + 1, j) - d, gy = g.at(i, j + 1) - d;
+      const double gn = std::hypot(gx, gy);
+      if (gn > 0 && std::isfinite(gn)) a = std::clamp(0.5 - d / gn, 0.0, 1.0);
     }
-  }
-  cairo_surface_mark_dirty(img);
-  paint_grid_image(cr, g, img);
-  cairo_surface_destroy(img);
-  cairo_save(cr);
-  cairo_set_source_rgb(cr, 0.05, 0.06, 0.10);
-  cairo_set_line_width(cr, 1.4);
-  stroke_segments(cr, contour(g, 0.0));
-  cairo_restore(cr);
+    return argb(a, r, gr, b);
+  });
+  stroke_surface(cr, g, 1.4);
 }
 
 std::unique_ptr<BackendInstance> make_backend(const Scene& scene, PluginLoader& loader,
