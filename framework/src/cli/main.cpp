@@ -45,8 +45,11 @@ int main(int argc, char** argv) {
   } catch (const CLI::RuntimeError& e) {
     return e.get_exit_code();  // a subcommand's own exit status
   } catch (const CLI::ParseError& e) {
-    // --help, --version, or a flag CLI11 itself refuses (bad input: 2, like an InputError).
-    return app.exit(e) == 0 ? 0 : 2;
+    // --help and --version are "errors" with status 0; every command-line mistake is bad
+    // input (exit 2, as documented), not CLI11's own codes 101-120.
+    if (e.get_exit_code() == 0) return app.exit(e);
+    spdlog::error("{} (pinsim --help, or pinsim COMMAND --help, lists the options)", e.what());
+    return 2;
   } catch (const pinsim::InputError& e) {
     spdlog::error("{}", e.what());  // bad input: nothing ran
     return 2;
