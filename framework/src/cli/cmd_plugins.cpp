@@ -25,7 +25,8 @@ void add_plugins_command(CLI::App& app) {
     std::cout << "\n";
     for (const auto& l : loader.list()) {
       if (!l.plugin) {
-        std::cout << "  (broken)  " << l.path.string() << ": " << l.error << "\n";
+        // (the error names the file; skipped, the listing goes on)
+        std::cout << "  (broken)  " << l.error << "\n";
         continue;
       }
       const auto* t = l.plugin->table;

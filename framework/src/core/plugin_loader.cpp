@@ -7,6 +7,8 @@
 #include <sstream>
 #include <system_error>
 
+#include "core/elf_check.hpp"
+
 namespace fs = std::filesystem;
 
 namespace pinsim {
@@ -44,6 +46,9 @@ std::shared_ptr<const LoadedPlugin> load_plugin_file(const fs::path& file) {
   std::error_code ec;
   if (!fs::is_regular_file(file, ec)) throw LoadError("plugin file not found: " + file.string());
 
+  // (the loader would map a truncated file past its end and die of SIGBUS)
+  if (const std::string problem = elf_problem(file); !problem.empty())
+    throw LoadError(file.string() + ": not a pinsim plugin: " + problem);
   auto lib = std::make_shared<boost::dll::shared_library>();
   try {
     lib->load(file, boost::dll::load_mode::rtld_now | boost::dll::load_mode::rtld_local);

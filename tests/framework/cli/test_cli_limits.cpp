@@ -27,6 +27,17 @@ void check_bad_input(const std::string& args, const std::string& expected) {
   CHECK(std::count(r.output.begin(), r.output.end(), '\n') == 1);
 }
 
+/// A one-ball scene on `backend` around `obstacles` (JSON), written to dir/name.
+std::string write_scene(const std::filesystem::path& dir, const std::string& name,
+                        const std::string& backend, const std::string& ball,
+                        const std::string& obstacles = "[]") {
+  const auto file = dir / name;
+  test::write_file(file, R"({"time": {"dt": 0.01, "duration": 0.1}, "backend": ")" + backend +
+                             R"(", "particles": [)" + ball + R"(], "obstacles": )" + obstacles +
+                             "}");
+  return file.string();
+}
+
 const std::string kBall = R"({"x": [0, 0], "v": [1, 0], "radius": 0.05})";
 const std::string kWall =
     R"([{"id": "wall", "shape": {"type": "box", "center": [2, 0], "half_size": [0.1, 1]}}])";
@@ -43,4 +54,39 @@ TEST_CASE("limits: every command-line mistake is exit 2 with CLI11's message") {
   const auto help = pinsim_cli("run --help");
   CHECK(help.code == 0);
   CHECK_THAT(help.output, Contains("--out"));
+}
+
+TEST_CASE("limits: a truncated plugin file is named and skipped unless it is needed") {
+  const auto dir = test::temp_dir("limits-plugin");
+  const std::filesystem::path good = std::filesystem::path(PINSIM_BIN).parent_path().parent_path() /
+                                     "plugins" / "libpinsim_plugin_gravity.so";
+  REQUIRE(std::filesystem::exists(good));
+  const std::string bytes = test::read_file(good);
+  // cut inside the loadable segments: dlopen would map past the end (SIGBUS)
+  test::write_file(dir / "libpinsim_plugin_cut.so", bytes.substr(0, bytes.size() / 3));
+  test::write_file(dir / "libpinsim_plugin_stub.so", bytes.substr(0, 40));
+  const std::string env = "PINSIM_PLUGIN_PATH=" + dir.string() + " ";
+  auto r = test::shell(env + PINSIM_BIN " plugins 2>&1");
+  CHECK(r.code == 0);
+  CHECK_THAT(r.output, Contains("(broken)  " + (dir / "libpinsim_plugin_cut.so").string() +
+                                ": not a pinsim plugin: truncated or corrupt (" +
+                                std::to_string(bytes.size() / 3) + " bytes)"));
+  CHECK_THAT(r.output, Contains("libpinsim_plugin_stub.so: not a pinsim plugin: not an ELF "
+                                "shared library (40 bytes, shorter than an ELF header)"));
+  CHECK_THAT(r.output, Contains("force   gravity "));
+  for (const std::string& cmd : {std::string("plugins cut"), std::string("check-plugin cut")}) {
+    CAPTURE(cmd);
+    r = test::shell(env + PINSIM_BIN " " + cmd + " 2>&1");
+    CHECK(r.code == 2);
+    CHECK_THAT(r.output, Contains((dir / "libpinsim_plugin_cut.so").string() +
+                                  ": not a pinsim plugin: truncated or corrupt"));
+  }
+  const std::string scene = write_scene(dir, "s.json", "none", kBall);
+  r = test::shell(env + PINSIM_BIN " validate " + scene +
+                  " --set 'forces=[{\"type\":\"cut\"}]' 2>&1");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output, Contains("libpinsim_plugin_cut.so: not a pinsim plugin: truncated"));
+  // a scene that does not name it is not concerned
+  r = test::shell(env + PINSIM_BIN " validate " + scene + " 2>&1");
+  CHECK(r.code == 0);
 }
