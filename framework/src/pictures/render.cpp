@@ -79,13 +79,14 @@ struct ParticleLayout {
 // The world rectangle: the option's, else the scene's bounds grown by the runs' paths
 // (runs alone are padded a little).
 ViewBox picture_view(const RenderJob& job, const RenderOptions& opt) {
-  if (opt.view) return *opt.view;
   ViewBox view =
       job.scene ? scene_view(*job.scene) : ViewBox{HUGE_VAL, HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
   for (const auto& run : job.runs) add_run_to_view(run, view, 0.0);
   if (view.empty()) view = ViewBox{};
   if (!job.scene) view.pad(0.05);
-  return view;
+  if (!opt.view) return view;
+  check_view(*opt.view, view, opt.width);
+  return *opt.view;
 }
 
 // The time shown: the option's, else the end of the longest run (0 without runs).

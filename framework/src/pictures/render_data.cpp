@@ -6,6 +6,8 @@
 #include <sstream>
 #include <stdexcept>
 
+#include "core/format.hpp"
+
 namespace pinsim {
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -321,6 +323,31 @@ ViewBox parse_view(const std::string& text) {
     throw std::invalid_argument("--view: expected x0,y0,x1,y1 with x1 > x0 and y1 > y0, got '" +
                                 text + "'");
   return ViewBox{v[0], v[1], v[2], v[3]};
+}
+
+void check_view(const ViewBox& v, const ViewBox& fit, int width) {
+  // (appended piece by piece: GCC 12 warns wrongly of overlap in "literal" + string)
+  std::string given = "--view ";
+  given.append(num(v.x0)).append(",").append(num(v.y0)).append(",").append(num(v.x1));
+  given.append(",").append(num(v.y1)).append(": ");
+  const double w = v.x1 - v.x0, h = v.y1 - v.y0;
+  if (!(std::isfinite(w) && std::isfinite(h) && w > 0.0 && h > 0.0))
+    throw std::invalid_argument(given + "expected finite corners with x1 > x0 and y1 > y0");
+  const double size = std::max(fit.x1 - fit.x0, fit.y1 - fit.y0);
+  std::string fit_text = "[";
+  fit_text.append(num(fit.x0)).append(", ").append(num(fit.x1)).append("] x [");
+  fit_text.append(num(fit.y0)).append(", ").append(num(fit.y1)).append("]");
+  if (!(std::max(w, h) >= 1e-3 * size && std::max(w, h) <= 1e3 * size))
+    throw std::invalid_argument(given + "its larger side " + num(std::max(w, h)) +
+                                " must be between 1e-3 and 1e3 times the picture's default " +
+                                "size " + num(size) + " (the scene and runs, " + fit_text + ")");
+  if (v.x1 < fit.x0 || v.x0 > fit.x1 || v.y1 < fit.y0 || v.y0 > fit.y1)
+    throw std::invalid_argument(given + "does not overlap the scene and runs, " + fit_text);
+  const double height = h / w * width;
+  if (!(height <= kMaxPictureHeight))
+    throw std::invalid_argument(given + "gives a picture " + num(height) + " pixels high at " +
+                                std::to_string(width) + " wide, more than the limit of " +
+                                std::to_string(kMaxPictureHeight));
 }
 
 }  // namespace pinsim

@@ -99,4 +99,11 @@ struct PixelMap {
 /// Parses "x0,y0,x1,y1"; throws std::invalid_argument.
 ViewBox parse_view(const std::string& text);
 
+/// Limits of a --view, against `fit` (the rectangle drawn by default) at `width` pixels:
+/// finite, overlapping `fit`, its larger side within [1e-3, 1e3] times fit's larger side
+/// (cairo would otherwise get radii of ~1e100 pixels and spin in cairo_arc), and a height
+/// of at most kMaxPictureHeight pixels. Throws std::invalid_argument naming the limit.
+void check_view(const ViewBox& view, const ViewBox& fit, int width);
+inline constexpr int kMaxPictureHeight = 8192;
+
 }  // namespace pinsim

@@ -65,14 +65,13 @@ json moving_frames(const BackendInstance& moving, const json& moving_scene, cons
 
 PixelMap write_replay(const RunData& run, const Scene* scene, PluginLoader& loader,
                       const ReplayOptions& opt, const fs::path& out) {
-  ViewBox view;
+  ViewBox view = scene ? scene_view(*scene) : inverted_view();
+  add_run_to_view(run, view, 0.0);
+  if (view.empty()) view = ViewBox{};
+  if (!scene) view.pad(0.05);
   if (opt.view) {
+    check_view(*opt.view, view, opt.width);
     view = *opt.view;
-  } else {
-    view = scene ? scene_view(*scene) : inverted_view();
-    add_run_to_view(run, view, 0.0);
-    if (view.empty()) view = ViewBox{};
-    if (!scene) view.pad(0.05);
   }
   const PixelMap map(view, opt.width);
   const double t_end = run.t_end();

@@ -90,3 +90,24 @@ TEST_CASE("limits: a truncated plugin file is named and skipped unless it is nee
   r = test::shell(env + PINSIM_BIN " validate " + scene + " 2>&1");
   CHECK(r.code == 0);
 }
+
+TEST_CASE("limits: a --view cairo cannot draw is refused before drawing") {
+  const auto dir = test::temp_dir("limits-view");
+  const std::string r =
+      "render " + configs + "/projectile.json --out " + (dir / "p.png").string() + " --view ";
+  check_bad_input(r + "0,0,1e-100,1e-100",
+                  "--view 0,0,1e-100,1e-100: its larger side 1e-100 must be between 1e-3 and "
+                  "1e3 times the picture's default size");
+  check_bad_input(r + "-1e308,0,1e308,1", "--view -1e+308,0,1e+308,1: expected finite corners");
+  check_bad_input(r + "100,100,101,101", "--view 100,100,101,101: does not overlap the scene");
+  check_bad_input(r + "0,0,0.01,1",
+                  "gives a picture 90000 pixels high at 900 wide, more than "
+                  "the limit of 8192");
+  const auto run = dir / "run";
+  REQUIRE(pinsim_cli("-q run " + configs + "/projectile.json --out " + run.string()).code == 0);
+  check_bad_input("replay " + run.string() + " --view 0,0,1e-100,1e-100",
+                  "--view 0,0,1e-100,1e-100: its larger side");
+  CHECK(pinsim_cli("-q render " + configs + "/projectile.json --out " + (dir / "ok.png").string() +
+                   " --view 0,-1,2,1")
+            .code == 0);
+}
