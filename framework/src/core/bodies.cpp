@@ -7,6 +7,7 @@
 
 #include "core/input_error.hpp"
 #include "core/json_read.hpp"
+#include "core/value_limits.hpp"
 
 namespace pinsim {
 
@@ -30,8 +31,11 @@ struct ParticleOptions {
   std::set<uint64_t> pinned;  ///< local indices
 };
 
-/// Reads mass | total_mass, radius, velocity, pinned (bool) and pin (local indices).
-ParticleOptions read_particle_options(const nlohmann::json& spec, uint64_t count, const Loc& at) {
+/// Reads mass | total_mass, radius, velocity, pinned (bool) and pin (local indices), after
+/// checking that `count` more particles than `out` has stay within the particle limit.
+ParticleOptions read_particle_options(const nlohmann::json& spec, uint64_t count, const Loc& at,
+                                      const ParticleList& out) {
+  check_particle_count(out.size(), count, at);
   ParticleOptions o;
   if (spec.contains("mass") && spec.contains("total_mass"))
     (at / "total_mass").fail("give either mass (per particle) or total_mass, not both");
@@ -43,10 +47,13 @@ ParticleOptions read_particle_options(const nlohmann::json& spec, uint64_t count
   if (!(m > 0.0) || !std::isfinite(m))
     (at / (spec.contains("total_mass") ? "total_mass" : "mass"))
         .fail("must be > 0 (kg), got " + std::to_string(m));
+  check_mass(m, at / (spec.contains("total_mass") ? "total_mass" : "mass"));
   o.inv_mass = 1.0 / m;
   o.radius = read_number_or(spec, "radius", 0.05, at);
   if (!(o.radius >= 0.0)) (at / "radius").fail("must be >= 0 (scene units)");
+  check_radius(o.radius, at / "radius");
   o.velocity = read_vec2_or(spec, "velocity", Vector2d::Zero(), at);
+  check_velocity(o.velocity, at / "velocity");
   o.all_pinned = read_bool_or(spec, "pinned", false, at);
   if (spec.contains("pin")) {
     const auto& p = spec["pin"];
@@ -118,7 +125,7 @@ Body ring_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
   if (!(rr > 0.0)) (at / "ring_radius").fail("must be > 0 (scene units)");
   const uint64_t n = read_count_min(spec, "count", 16, 3, at);
   const double a0 = read_number_or(spec, "angle", 0.0, at);
-  const ParticleOptions o = read_particle_options(spec, n, at);
+  const ParticleOptions o = read_particle_options(spec, n, at, out);
   Body b;
   b.first = static_cast<uint32_t>(out.size());
   b.count = static_cast<uint32_t>(n);
@@ -170,7 +177,7 @@ Body grid_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
                  ny = read_count_min(spec, "ny", 4, 2, at);
   const double h = read_number_or(spec, "spacing", 0.1, at);
   if (!(h > 0.0)) (at / "spacing").fail("must be > 0 (scene units)");
-  const ParticleOptions o = read_particle_options(spec, nx * ny, at);
+  const ParticleOptions o = read_particle_options(spec, nx * ny, at, out);
   Body b;
   b.first = static_cast<uint32_t>(out.size());
   b.count = static_cast<uint32_t>(nx * ny);
@@ -235,7 +242,7 @@ Body strand(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
   if (!(seg > 0.0))
     (at / (spec.contains("length") ? "length" : "segment_length"))
         .fail("must be > 0 (scene units)");
-  ParticleOptions o = read_particle_options(spec, n, at);
+  ParticleOptions o = read_particle_options(spec, n, at, out);
   if (read_bool_or(spec, "pin_root", true, at)) o.pinned.insert(0);
   Body b;
   b.first = static_cast<uint32_t>(out.size());

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <set>
 #include <vector>
 
@@ -99,7 +100,7 @@ std::string line_col(const std::string& text, std::size_t byte) {
 /// being read for messages.
 class StrictSax : public nlohmann::json_sax<nlohmann::json> {
  public:
-  StrictSax(nlohmann::json& out, std::size_t max_depth) : dom_(out, true), max_depth_(max_depth) {}
+  StrictSax(nlohmann::json& out, const JsonLimits& limits) : dom_(out, true), limits_(limits) {}
 
   bool null() override { return value() && dom_.null(); }
   bool boolean(bool v) override { return value() && dom_.boolean(v); }
@@ -108,13 +109,14 @@ class StrictSax : public nlohmann::json_sax<nlohmann::json> {
   bool number_float(number_float_t v, const string_t& s) override {
     return value() && dom_.number_float(v, s);
   }
-  bool string(string_t& v) override { return value() && dom_.string(v); }
+  bool string(string_t& v) override { return value() && short_enough(v) && dom_.string(v); }
   bool binary(binary_t& v) override { return value() && dom_.binary(v); }
   bool start_object(std::size_t n) override {
     if (!value() || !open(true)) return false;
     return dom_.start_object(n);
   }
   bool key(string_t& k) override {
+    if (!short_enough(k) || !counted()) return false;
     Frame& f = frames_.back();
     if (!f.keys.insert(k).second) {
       f.key = k;
@@ -171,14 +173,32 @@ class StrictSax : public nlohmann::json_sax<nlohmann::json> {
     std::string key;
     std::set<std::string> keys;
   };
-  /// A value begins: count it in its array.
+  /// A value or an object key: count it in the document.
+  bool counted() {
+    if (++values_ <= limits_.max_values) return true;
+    problem_ = "more than " + std::to_string(limits_.max_values) +
+               " values and keys in the document (the limit; $PINSIM_JSON_MAX_VALUES raises it)";
+    return false;
+  }
+  /// A value begins: count it in its array (so a message's path names it), then in the
+  /// document.
   bool value() {
-    if (!frames_.empty() && !frames_.back().object) ++frames_.back().index;
-    return true;
+    if (!frames_.empty() && !frames_.back().object && ++frames_.back().index > limits_.max_array) {
+      problem_ = "an array of more than " + std::to_string(limits_.max_array) +
+                 " entries (the limit; $PINSIM_JSON_MAX_ARRAY raises it)";
+      return false;
+    }
+    return counted();
+  }
+  bool short_enough(const string_t& v) {
+    if (v.size() <= limits_.max_string) return true;
+    problem_ = "a string of " + std::to_string(v.size()) + " bytes, longer than the limit of " +
+               std::to_string(limits_.max_string) + " ($PINSIM_JSON_MAX_STRING raises it)";
+    return false;
   }
   bool open(bool object) {
-    if (frames_.size() >= max_depth_) {
-      problem_ = "nested deeper than " + std::to_string(max_depth_) +
+    if (frames_.size() >= limits_.max_depth) {
+      problem_ = "nested deeper than " + std::to_string(limits_.max_depth) +
                  " levels of arrays and objects (the limit)";
       return false;
     }
@@ -187,7 +207,8 @@ class StrictSax : public nlohmann::json_sax<nlohmann::json> {
   }
 
   nlohmann::detail::json_sax_dom_parser<nlohmann::json> dom_;
-  std::size_t max_depth_;
+  const JsonLimits& limits_;
+  std::size_t values_ = 0;
   std::vector<Frame> frames_;
   std::string problem_, error_, error_token_;
   std::size_t error_pos_ = 0;
@@ -196,6 +217,24 @@ class StrictSax : public nlohmann::json_sax<nlohmann::json> {
 
 }  // namespace
 
+JsonLimits JsonLimits::from_environment() {
+  JsonLimits l;
+  const std::pair<const char*, std::size_t*> vars[] = {{"PINSIM_JSON_MAX_VALUES", &l.max_values},
+                                                       {"PINSIM_JSON_MAX_ARRAY", &l.max_array},
+                                                       {"PINSIM_JSON_MAX_STRING", &l.max_string}};
+  for (const auto& [name, field] : vars) {
+    const char* v = std::getenv(name);
+    if (v == nullptr || *v == '\0') continue;
+    const std::string text = v;
+    if (text.size() > 18 || text.find_first_not_of("0123456789") != std::string::npos ||
+        std::stoull(text) == 0)
+      throw SceneError(std::string("$") + name + "=" + text +
+                       ": expected a positive integer (at most 18 digits)");
+    *field = std::stoull(text);
+  }
+  return l;
+}
+
 nlohmann::json parse_json_text(const std::string& text, const std::string& label,
                                const JsonLimits& limits) {
   if (text.size() > limits.max_bytes)
@@ -203,7 +242,7 @@ nlohmann::json parse_json_text(const std::string& text, const std::string& label
                      " bytes, larger than the limit of " + std::to_string(limits.max_bytes) +
                      " bytes for a JSON file");
   nlohmann::json out;
-  StrictSax sax(out, limits.max_depth);
+  StrictSax sax(out, limits);
   bool ok = false;
   try {
     ok = nlohmann::json::sax_parse(text, &sax, nlohmann::json::input_format_t::json, true,

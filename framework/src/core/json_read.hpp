@@ -58,10 +58,19 @@ class JsonSyntaxError : public InputError {
   using InputError::InputError;
 };
 
-/// Limits of parse_json_text (documented in README's Scenes section).
+/// Limits of parse_json_text (documented in README's Scenes section). The sizes bound the
+/// memory a document takes once parsed: about 16 bytes per number, 80 per object member.
 struct JsonLimits {
   std::size_t max_depth = 256;         ///< nesting of arrays and objects
   std::size_t max_bytes = 256u << 20;  ///< size of the text
+  std::size_t max_values = 1'000'000;  ///< values and keys ($PINSIM_JSON_MAX_VALUES)
+  std::size_t max_array = 1'000'000;   ///< entries of one array ($PINSIM_JSON_MAX_ARRAY)
+  std::size_t max_string = 1u << 20;   ///< bytes of one string or key ($PINSIM_JSON_MAX_STRING)
+
+  /// The defaults, with max_values, max_array and max_string taken from the environment
+  /// variables named above when they are set (a positive integer; anything else is a
+  /// SceneError naming the variable).
+  static JsonLimits from_environment();
 };
 
 /// Parses JSON text with comments allowed, strictly: a syntax error or a number beyond a
@@ -70,6 +79,6 @@ struct JsonLimits {
 /// anything recursive (copy, dump, destruction) can meet it. Throws JsonSyntaxError for
 /// text that is not JSON, InputError for the rest.
 nlohmann::json parse_json_text(const std::string& text, const std::string& label,
-                               const JsonLimits& limits = {});
+                               const JsonLimits& limits = JsonLimits::from_environment());
 
 }  // namespace pinsim

@@ -6,6 +6,7 @@
 
 #include "core/format.hpp"
 #include "core/input_error.hpp"
+#include "core/value_limits.hpp"
 
 namespace pinsim {
 namespace {
@@ -29,6 +30,9 @@ std::string type_name(uint32_t t) {
 
 void check_range(const pinsim_param& p, double v, const std::string& at) {
   if (!std::isfinite(v)) throw SceneError(at + ": must be a finite number, got " + num(v));
+  if (p.type != PINSIM_PARAM_INT && !(std::abs(v) <= kMaxParamMagnitude))
+    throw SceneError(at + ": " + num(v) + " is beyond the limit of " + num(kMaxParamMagnitude) +
+                     " in magnitude for a real parameter (so that energies stay finite)");
   const bool lo_x = p.flags & PINSIM_PARAM_MIN_EXCLUSIVE;
   const bool hi_x = p.flags & PINSIM_PARAM_MAX_EXCLUSIVE;
   if (lo_x ? !(v > p.min) : !(v >= p.min))

@@ -4,7 +4,9 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/format.hpp"
 #include "core/json_read.hpp"
+#include "core/value_limits.hpp"
 
 namespace fs = std::filesystem;
 
@@ -44,6 +46,7 @@ PluginRef read_plugin_ref(const nlohmann::json& j, const Loc& at, const char* na
 
 void read_particles(const nlohmann::json& list, const Loc& at, ParticleList& out) {
   if (!list.is_array()) at.fail("expected an array of particles, " + describe(list));
+  check_particle_count(out.size(), list.size(), at);
   for (std::size_t i = 0; i < list.size(); ++i) {
     const auto& p = list[i];
     const Loc pl = at[i];
@@ -51,12 +54,16 @@ void read_particles(const nlohmann::json& list, const Loc& at, ParticleList& out
     check_keys(p, {"name", "x", "v", "mass", "radius", "pinned"}, pl);
     if (!p.contains("x")) (pl / "x").fail("required position [x, y] is missing");
     const Eigen::Vector2d x = read_vec2(p.at("x"), pl / "x");
+    check_position(x, pl / "x");
     const Eigen::Vector2d v = read_vec2_or(p, "v", Eigen::Vector2d::Zero(), pl);
+    check_velocity(v, pl / "v");
     const bool pinned = read_bool_or(p, "pinned", false, pl);
     const double mass = read_number_or(p, "mass", 1.0, pl);
     if (!(mass > 0.0)) (pl / "mass").fail("must be > 0, got " + p.at("mass").dump());
+    check_mass(mass, pl / "mass");
     const double radius = read_number_or(p, "radius", 0.0, pl);
     if (!(radius >= 0.0)) (pl / "radius").fail("must be >= 0, got " + p.at("radius").dump());
+    check_radius(radius, pl / "radius");
     out.add(x, v, pinned ? 0.0 : 1.0 / mass, radius);
   }
 }
@@ -113,7 +120,16 @@ void read_particles_and_bodies(const nlohmann::json& d, const Loc& root, Scene& 
     if (!bl.is_array()) (root / "bodies").fail("expected an array of bodies, " + describe(bl));
     for (std::size_t i = 0; i < bl.size(); ++i) {
       require_object(bl[i], (root / "bodies")[i]);
+      const std::size_t before = s.particles.size();
       Body b = build_body(bl[i], (root / "bodies")[i].str(), s.particles);
+      // (a body's particles come from its centre, origin or root and its sizes)
+      for (std::size_t k = before; k < s.particles.size(); ++k)
+        if (!(std::abs(s.particles.x[k].x()) <= kMaxCoordinate &&
+              std::abs(s.particles.x[k].y()) <= kMaxCoordinate))
+          ((root / "bodies")[i]).fail(
+              "puts its particle " + std::to_string(k - before) + " at (" +
+              num(s.particles.x[k].x()) + ", " + num(s.particles.x[k].y()) +
+              "), beyond the coordinate limit of " + num(kMaxCoordinate) + " in magnitude");
       for (const auto& other : s.bodies)
         if (!b.name.empty() && other.name == b.name)
           ((root / "bodies")[i] / "name").fail("a body named '" + b.name + "' already exists");

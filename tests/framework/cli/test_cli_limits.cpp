@@ -56,6 +56,31 @@ TEST_CASE("limits: every command-line mistake is exit 2 with CLI11's message") {
   CHECK_THAT(help.output, Contains("--out"));
 }
 
+TEST_CASE("limits: masses, speeds, positions and parameters that overflow are refused") {
+  const std::string p = "validate " + configs + "/projectile.json --set ";
+  check_bad_input(p + "particles[0].mass=1e-320",
+                  "projectile.json: particles[0].mass: must be between 1e-50 and 1e+50 (so that "
+                  "1/m and m v^2 stay finite), got 1e-320");
+  check_bad_input(p + "particles[0].mass=1e300", "particles[0].mass: must be between 1e-50");
+  check_bad_input(p + "'particles[0].v=[2e154,0]'",
+                  "projectile.json: particles[0].v[0]: velocity 2e+154 is beyond the limit of "
+                  "1e+50 in magnitude (so that squares and energies stay finite)");
+  check_bad_input(p + "'particles[0].x=[0,-1e200]'",
+                  "projectile.json: particles[0].x[1]: coordinate -1e+200 is beyond the limit "
+                  "of 1e+50");
+  check_bad_input(p + "particles[0].radius=1e308",
+                  "particles[0].radius: must be between 0 and 1e+50, got 1e+308");
+  check_bad_input(p + "'forces[0].params.g=[0,-1e300]'",
+                  "forces[0].params.g[1]: -1e+300 is beyond the limit of 1e+100 in magnitude "
+                  "for a real parameter");
+  check_bad_input(
+      p + "'bodies=[{\"type\":\"ring_blob\",\"center\":[1e60,0],\"count\":4}]'",
+      "projectile.json: bodies[0]: puts its particle 0 at (1e+60, 0), beyond the coordinate "
+      "limit of 1e+50");
+  check_bad_input(p + "'bodies=[{\"type\":\"strand\",\"root\":[0,0],\"mass\":1e-60}]'",
+                  "bodies[0].mass: must be between 1e-50 and 1e+50");
+}
+
 TEST_CASE("limits: a truncated plugin file is named and skipped unless it is needed") {
   const auto dir = test::temp_dir("limits-plugin");
   const std::filesystem::path good = std::filesystem::path(PINSIM_BIN).parent_path().parent_path() /
@@ -110,4 +135,43 @@ TEST_CASE("limits: a --view cairo cannot draw is refused before drawing") {
   CHECK(pinsim_cli("-q render " + configs + "/projectile.json --out " + (dir / "ok.png").string() +
                    " --view 0,-1,2,1")
             .code == 0);
+}
+
+TEST_CASE("limits: arrays, strings and particle counts have limits, raised from the environment") {
+  const auto dir = test::temp_dir("limits-sizes");
+  const std::string p = "validate " + configs + "/projectile.json --set ";
+  check_bad_input(p + "'bodies=[{\"type\":\"grid_blob\",\"nx\":1000000,\"ny\":1000000}]'",
+                  "projectile.json: bodies[0]: 1000000000000 particles here make 1000000000001, "
+                  "more than the limit of 1000000 particles in a scene ($PINSIM_MAX_PARTICLES "
+                  "raises it)");
+  std::string big = "[0";
+  for (int i = 0; i < 1000000; ++i) big += ",0";
+  test::write_file(dir / "long.json", "{\"description\": " + big + "]}");
+  check_bad_input("validate " + (dir / "long.json").string(),
+                  "long.json: description[999997]: more than 1000000 values and keys in the "
+                  "document (the limit; $PINSIM_JSON_MAX_VALUES raises it)");
+  auto r = test::shell("PINSIM_JSON_MAX_VALUES=2000000 " PINSIM_BIN " validate " +
+                       (dir / "long.json").string() + " 2>&1");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output, Contains("long.json: description[1000000]: an array of more than 1000000 "
+                                "entries (the limit; $PINSIM_JSON_MAX_ARRAY raises it)"));
+  test::write_file(dir / "string.json", "{\"name\": \"" + std::string((1u << 20) + 1, 'a') + "\"}");
+  check_bad_input("validate " + (dir / "string.json").string(),
+                  "string.json: name: a string of 1048577 bytes, longer than the limit of "
+                  "1048576 ($PINSIM_JSON_MAX_STRING raises it)");
+  // the environment raises (or lowers) them
+  const std::string small = write_scene(dir, "small.json", "none", kBall);
+  r = test::shell("PINSIM_JSON_MAX_ARRAY=1 " PINSIM_BIN " validate " + small + " 2>&1");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output, Contains("small.json: particles[0].x[1]: an array of more than 1 entries"));
+  r = test::shell("PINSIM_MAX_PARTICLES=0 " PINSIM_BIN " validate " + small + " 2>&1");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output, Contains("$PINSIM_MAX_PARTICLES=0: expected a positive integer"));
+  r = test::shell("PINSIM_JSON_MAX_VALUES=4 " PINSIM_BIN " validate " + small + " 2>&1");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output,
+             Contains("small.json: time.dt: more than 4 values and keys in the document"));
+  r = test::shell("PINSIM_JSON_MAX_VALUES=100 PINSIM_MAX_PARTICLES=2 " PINSIM_BIN " validate " +
+                  small + " 2>&1");
+  CHECK(r.code == 0);
 }
