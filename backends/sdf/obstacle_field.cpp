@@ -5,6 +5,8 @@
 #include <map>
 #include <set>
 
+#include "limits.hpp"
+
 namespace pinsim::sdf {
 namespace {
 
@@ -60,6 +62,10 @@ ObstacleField::ObstacleField(const nlohmann::json& scene_json, const std::string
                              const std::vector<Vec2>& extra, long grid_cells) {
   const nlohmann::json empty = nlohmann::json::object();
   const JsonIn scene(scene_json.is_object() ? scene_json : empty, "", ctx);
+  for (const char* key : {"obstacles", "inputs"}) {
+    std::string path = key;
+    if (scene.has(key)) check_magnitudes(scene.json().at(key), path, ctx);
+  }
   std::vector<std::string> input_names;
   const InputMap inputs = parse_inputs(scene, input_names);
   std::set<std::string> listened;

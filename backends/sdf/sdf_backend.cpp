@@ -4,6 +4,7 @@
 #include <cmath>
 
 #include "contact_options.hpp"
+#include "limits.hpp"
 
 namespace pinsim::sdf {
 
@@ -62,7 +63,14 @@ SdfBackend::SdfBackend(const CreateContext& ctx) {
   max_iterations_ = static_cast<int>(p.integer("max_iterations"));
   rest_speed_ = p.real("rest_speed");
   std::vector<Vec2> pts;
-  for (std::size_t i = 0; i < ctx.initial.n; ++i) pts.push_back(ctx.initial.x.col(i));
+  for (std::size_t i = 0; i < ctx.initial.n; ++i) {
+    pts.push_back(ctx.initial.x.col(i));
+    if (!(pts.back().cwiseAbs().maxCoeff() <= kMaxMagnitude))
+      throw Error(ctx.context + ": particle " + std::to_string(i) + " starts at (" +
+                  num(pts.back().x()) + ", " + num(pts.back().y()) +
+                  "), beyond the sdf backend's coordinate limit of 1e+09 in magnitude "
+                  "(backends/sdf/README.md, Limits)");
+  }
   field_ = ObstacleField(ctx.scene, ctx.context, pts, p.integer("grid_cells"));
   const ContactOptions contacts = read_contacts(ctx);
   particle_contacts_ = contacts.particles;
@@ -424,6 +432,12 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   rest_.resize(s.n);
   for (std::size_t i = 0; i < s.n; ++i) {
     if (!(s.inv_mass[i] > 0.0)) continue;  // pinned particles do not move
+    // (beyond the limit the march cannot resolve the step: refuse, never freeze silently)
+    if (!(std::abs(s.v(0, i)) * dt <= kMaxMagnitude && std::abs(s.v(1, i)) * dt <= kMaxMagnitude))
+      throw Error("particle " + std::to_string(i) + " at t = " + num(t0) + " s: velocity (" +
+                  num(s.v(0, i)) + ", " + num(s.v(1, i)) +
+                  ") travels beyond the sdf backend's limit of 1e+09 per step "
+                  "(backends/sdf/README.md, Limits)");
     if (pairs)
       march_with_changes(i, s, t0, dt, ev);
     else

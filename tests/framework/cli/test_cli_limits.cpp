@@ -81,6 +81,31 @@ TEST_CASE("limits: masses, speeds, positions and parameters that overflow are re
                   "bodies[0].mass: must be between 1e-50 and 1e+50");
 }
 
+TEST_CASE("limits: the sdf backend refuses numbers its arithmetic cannot carry") {
+  const auto dir = test::temp_dir("limits-sdf");
+  // an obstacle at 1e300 made the grid's area overflow and a lookup read a null candidate
+  check_bad_input(
+      "validate " + write_scene(dir, "far_obstacle.json", "sdf", kBall,
+                                R"([{"id": "c", "shape": {"type": "circle", "center": [1e300, 0],
+                                     "radius": 1}}])"),
+      "far_obstacle.json: obstacles[0].shape.center[0]: 1e+300 is beyond the limit of 1e+09 in "
+      "magnitude for obstacle and input numbers (backends/sdf/README.md, Limits)");
+  check_bad_input("validate " + write_scene(dir, "far_ball.json", "sdf",
+                                            R"({"x": [1e20, 0], "radius": 0.05})", kWall),
+                  "particle 0 starts at (1e+20, 0), beyond the sdf backend's coordinate limit "
+                  "of 1e+09");
+  // a particle that would travel beyond the limit in one step stops the run (exit 1),
+  // never "ok" with the particle frozen
+  const std::string fast = write_scene(dir, "fast.json", "sdf",
+                                       R"({"x": [0, 0], "v": [1e20, 0], "radius": 0.05})", kWall);
+  const auto r = pinsim_cli("-q run " + fast + " --out " + (dir / "run").string());
+  CHECK(r.code == 1);
+  CHECK_THAT(r.output, Contains("particle 0 at t = 0 s: velocity (1e+20, 0) travels beyond the "
+                                "sdf backend's limit of 1e+09 per step"));
+  const auto s = nlohmann::json::parse(test::read_file(dir / "run" / "summary.json"));
+  CHECK(s["status"] != "ok");
+}
+
 TEST_CASE("limits: a truncated plugin file is named and skipped unless it is needed") {
   const auto dir = test::temp_dir("limits-plugin");
   const std::filesystem::path good = std::filesystem::path(PINSIM_BIN).parent_path().parent_path() /
