@@ -6,6 +6,8 @@
 #include <sstream>
 
 #include "contact_options.hpp"
+#include "json_in.hpp"
+#include "preconditions.hpp"
 #include "shape_builder.hpp"
 
 namespace pinsim::box2d {
@@ -57,6 +59,14 @@ double choose_length_scale(const CreateContext& ctx, const sdf::ObstacleField& f
     scale = n > 0 ? 1.0 / r_min : 1.0;
     if (size_max > 0.0) scale = std::min(scale, 10.0 / size_max);
   }
+  // (Box2D's floats, and the conversions back, need a scale that neither overflows nor
+  // underflows them)
+  if (!(scale >= 1.0 / kMaxFloatValue && scale <= kMaxFloatValue))
+    throw Error(ctx.context + ": length scale " + num(scale) +
+                (requested == 0.0 ? " (1 / the smallest particle radius " + num(r_min) + ")"
+                                  : std::string(" (params.length_scale)")) +
+                " is outside the range the box2d backend can use, [" + num(1.0 / kMaxFloatValue) +
+                ", " + num(kMaxFloatValue) + "]");
   return scale;
 }
 
@@ -104,19 +114,38 @@ struct PieceTarget {
   b2FixtureDef fd;  ///< material, threshold and tag; the shape is set per piece
   double s;         ///< length scale
   const std::string& context;
-  const std::string& path;  ///< obstacles[k]
-  const std::string& id;    ///< the obstacle's id
+  const std::string& path;           ///< obstacles[k]
+  const std::string& id;             ///< the obstacle's id
+  Box2dBackend::Thinnest& thinnest;  ///< the shortest edge so far (updated)
 };
 
+// Throws "unsupported by box2d" naming the piece unless `problem` is empty.
+void require(const PieceTarget& t, const char* what, const std::string& problem) {
+  if (problem.empty()) return;
+  throw Error(t.context + ": " + t.path + ".shape: unsupported by box2d (obstacle '" + t.id +
+              "'): " + what + ": " + problem + " at length scale " + num(t.s));
+}
+
+// Throws unless every point (scene units, the obstacle's frame) is within kMaxUnits at the
+// length scale.
+void check_coordinates(const PieceTarget& t, const std::vector<Vec2>& v, double radius,
+                       const char* what) {
+  for (const Vec2& p : v) require(t, what, coordinate_problem(p.x() * t.s, p.y() * t.s));
+  require(t, what, coordinate_problem(radius * t.s, 0.0));
+}
+
 // Throws if an edge of v (with the closing edge if `closed`) is not longer than Box2D's
-// weld distance at the length scale; `what` names the piece.
+// weld distance at the length scale; `what` names the piece. Records the shortest edge.
 void check_edges(const PieceTarget& t, const std::vector<Vec2>& v, bool closed, const char* what) {
   const double weld = 0.5 * b2_linearSlop;
-  for (std::size_t q = 0; q + (closed ? 0 : 1) < v.size(); ++q)
-    if ((v[(q + 1) % v.size()] - v[q]).norm() * t.s <= 2.0 * weld)
+  for (std::size_t q = 0; q + (closed ? 0 : 1) < v.size(); ++q) {
+    const double len = (v[(q + 1) % v.size()] - v[q]).norm();
+    if (len < t.thinnest.length) t.thinnest = {len, t.id};
+    if (len * t.s <= 2.0 * weld)
       throw Error(t.context + ": " + t.path + ".shape: unsupported by box2d (obstacle '" + t.id +
                   "'): " + what + " has an edge shorter than Box2D's weld distance " +
                   num(2.0 * weld / t.s) + " at length scale " + num(t.s));
+  }
 }
 
 // Attaches a fixture of `shape` to the target's body.
@@ -127,6 +156,7 @@ void attach(PieceTarget& t, const b2Shape& shape) {
 
 // A circle piece.
 void add_circle(PieceTarget& t, const Piece& pc) {
+  check_coordinates(t, pc.v, pc.radius, "a circle");
   b2CircleShape c;
   c.m_p = to_b2(pc.v[0], t.s);
   c.m_radius = static_cast<float>(pc.radius * t.s);
@@ -135,9 +165,13 @@ void add_circle(PieceTarget& t, const Piece& pc) {
 
 // A convex polygon piece (at most b2_maxPolygonVertices points).
 void add_polygon(PieceTarget& t, const Piece& pc) {
+  check_coordinates(t, pc.v, pc.radius, "a polygon piece");
+  require(t, "a polygon piece",
+          pc.v.size() <= b2_maxPolygonVertices ? "" : "more than b2_maxPolygonVertices vertices");
   check_edges(t, pc.v, true, "a polygon piece");
   b2Vec2 v[b2_maxPolygonVertices];
   for (std::size_t q = 0; q < pc.v.size(); ++q) v[q] = to_b2(pc.v[q], t.s);
+  require(t, "a polygon piece", polygon_problem(v, static_cast<int>(pc.v.size())));
   b2PolygonShape poly;
   poly.Set(v, static_cast<int32>(pc.v.size()));
   // Skin: Box2D inflates polygons by b2_polygonRadius = 0.01 units so that polygon
@@ -151,6 +185,7 @@ void add_polygon(PieceTarget& t, const Piece& pc) {
 // A segment piece (a capsule if it has a radius); one-sided ones get ghost vertices that
 // continue it straight on both ends.
 void add_edge(PieceTarget& t, const Piece& pc) {
+  check_coordinates(t, pc.v, pc.radius, "a segment");
   check_edges(t, pc.v, false, "a segment");
   b2EdgeShape e;
   const b2Vec2 a = to_b2(pc.v[0], t.s), b = to_b2(pc.v[1], t.s);
@@ -167,9 +202,12 @@ void add_edge(PieceTarget& t, const Piece& pc) {
 // A container wall: a closed chain, or an open one with the piece's ghost vertices.
 void add_chain(PieceTarget& t, const Piece& pc) {
   const bool loop = pc.kind == Piece::Kind::kChainLoop;
+  check_coordinates(t, pc.v, 0.0, "a container wall");
+  if (!loop) check_coordinates(t, {pc.ghost0, pc.ghost1}, 0.0, "a container wall");
   check_edges(t, pc.v, loop, "a container wall");
   std::vector<b2Vec2> v;
   for (const Vec2& q : pc.v) v.push_back(to_b2(q, t.s));
+  require(t, "a container wall", chain_problem(v, loop));
   b2ChainShape ch;
   if (loop)
     ch.CreateLoop(v.data(), static_cast<int32>(v.size()));
@@ -282,10 +320,13 @@ void Box2dBackend::add_obstacles(const CreateContext& ctx, float threshold) {
     const sdf::Obstacle& o = field_.obstacle(k);
     const std::string path = "obstacles[" + std::to_string(k) + "]";
     const b2BodyDef bd = obstacle_body_def(o, s);
+    if (const std::string pr = coordinate_problem(bd.position.x, bd.position.y); !pr.empty())
+      throw Error(ctx.context + ": " + path + ".motion: unsupported by box2d (obstacle '" + o.id +
+                  "'): its body's position " + pr + " at length scale " + num(s));
     b2Body* body = world_->CreateBody(&bd);
     obstacle_body_.push_back(body);
     tags_.push_back({-1, static_cast<int64_t>(k)});
-    PieceTarget target{body, b2FixtureDef(), s, ctx.context, path, o.id};
+    PieceTarget target{body, b2FixtureDef(), s, ctx.context, path, o.id, thinnest_};
     target.fd.friction = static_cast<float>(o.material.friction);
     target.fd.restitution = static_cast<float>(o.material.restitution);
     target.fd.restitutionThreshold = threshold;
@@ -307,6 +348,17 @@ void Box2dBackend::add_particles(const CreateContext& ctx, bool friction, float 
     const auto ii = static_cast<Eigen::Index>(i);
     const double w = ctx.initial.inv_mass[ii];
     const double r = ctx.initial.radius[ii];
+    // Box2D's preconditions for the body and its circle
+    const std::string where = ctx.context + ": particles[" + std::to_string(i) + "]: ";
+    const Vec2 x0 = ctx.initial.x.col(ii);
+    if (const std::string pr = coordinate_problem(x0.x() * s, x0.y() * s); !pr.empty())
+      throw Error(where + "position " + pr + " at length scale " + num(s));
+    if (const std::string pr = coordinate_problem(r * s, 0.0); !pr.empty())
+      throw Error(where + "radius " + pr + " at length scale " + num(s));
+    if (w > 0.0)
+      if (const std::string pr = particle_mass_problem(1.0 / w, r * s, friction); !pr.empty())
+        throw Error(where + pr + " (radius " + num(r * s) + " Box2D units at length scale " +
+                    num(s) + ")");
     b2BodyDef bd;
     bd.type = w > 0.0 ? b2_dynamicBody : b2_staticBody;
     bd.position = to_b2(ctx.initial.x.col(ii), s);
@@ -334,6 +386,51 @@ void Box2dBackend::add_particles(const CreateContext& ctx, bool friction, float 
 }
 
 Box2dBackend::~Box2dBackend() = default;
+
+// Every moving particle's travel this step within b2_maxTranslation (Box2D would silently
+// slow it down) and its position within kMaxUnits (beyond, Box2D's floats overflow or
+// lose its contacts). The fastest particle is named, with the length scales that would
+// take it: below b2_maxTranslation / (v dt), and above b2_linearSlop / (the shortest
+// obstacle edge) for the thin walls (check_edges); when the two cross, none.
+void Box2dBackend::check_particles(const MutableState& st, double dt) const {
+  const double s = scale_;
+  double v_max = 0.0;
+  std::size_t fastest = st.n, over = 0;
+  for (std::size_t i = 0; i < st.n; ++i) {
+    const auto ii = static_cast<Eigen::Index>(i);
+    if (!(st.inv_mass[ii] > 0.0)) continue;
+    const Vec2 x = st.x.col(ii);
+    if (const std::string pr = coordinate_problem(x.x() * s, x.y() * s); !pr.empty())
+      throw Error("particle " + std::to_string(i) + " at t = " + num(t0_) + ": position " + pr +
+                  " at length scale " + num(s));
+    const double speed = st.v.col(ii).norm();
+    if (!(speed * dt * s <= b2_maxTranslation)) ++over;
+    if (!(speed <= v_max)) {  // (a NaN speed is the fastest)
+      v_max = speed;
+      fastest = i;
+    }
+  }
+  if (over == 0) return;
+  const double s_fast = b2_maxTranslation / (v_max * dt);
+  const double s_thin = b2_linearSlop / thinnest_.length;
+  std::string advice;
+  if (!std::isfinite(v_max)) {
+    advice = "its velocity is not finite";
+  } else if (s_fast > s_thin) {
+    advice = "at dt = " + num(dt) + " use the box2d parameter length_scale between " + num(s_thin) +
+             " and " + num(s_fast) + " (now " + num(s) + ") or a smaller time step";
+  } else {
+    advice = "no length scale works at dt = " + num(dt) + ": below " + num(s_fast) +
+             " the thinnest wall (an edge of " + num(thinnest_.length) + " in obstacle '" +
+             thinnest_.obstacle + "') is shorter than b2_linearSlop; use a time step below " +
+             num(b2_maxTranslation / (v_max * s_thin));
+  }
+  throw Error("particle " + std::to_string(fastest) + " at t = " + num(t0_) + ": speed " +
+              num(v_max) + " moves it " + num(v_max * dt * s) +
+              " Box2D units in one step, more than b2_maxTranslation = 2 (Box2D would "
+              "silently slow it down; " +
+              std::to_string(over) + " particle(s) over); " + advice);
+}
 
 double Box2dBackend::distance(const Vec2& p, double t, int64_t* obstacle) const {
   const sdf::Nearest nn = field_.nearest(p, t);
@@ -486,20 +583,12 @@ void Box2dBackend::advance(MutableState& st, double dt, EventSink& ev) {
       b->SetLinearVelocity(b2Vec2(static_cast<float>(v.x()), static_cast<float>(v.y())));
     }
   }
+  check_particles(st, dt);
   for (std::size_t i = 0; i < st.n; ++i) {
     const auto ii = static_cast<Eigen::Index>(i);
     if (!(st.inv_mass[ii] > 0.0)) continue;
     b2Body* b = particle_body_[i];
     const Vec2 x = st.x.col(ii), v = st.v.col(ii);
-    const double travel = v.norm() * dt * s;
-    if (travel > b2_maxTranslation)
-      throw Error("particle " + std::to_string(i) + " at t = " + num(t0_) + ": speed " +
-                  num(v.norm()) + " moves it " + num(travel) +
-                  " Box2D units in one step, more than b2_maxTranslation = 2 (Box2D would "
-                  "silently slow it down); at dt = " +
-                  num(dt) + " use the box2d parameter length_scale < " +
-                  num(b2_maxTranslation / (v.norm() * dt)) + " (now " + num(s) +
-                  ") or a smaller time step");
     const b2Vec2 xb = to_b2(x, s);
     if (!(b->GetPosition() == xb)) b->SetTransform(xb, b->GetAngle());
     b->SetLinearVelocity(to_b2(v, s));

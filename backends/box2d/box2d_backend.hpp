@@ -6,9 +6,11 @@
 
 #include <box2d/box2d.h>
 
+#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <pinsim/plugin.hpp>
+#include <string>
 #include <vector>
 
 #include "obstacle_field.hpp"
@@ -46,6 +48,12 @@ class Box2dBackend {
   /// Number of fixtures built for obstacle k.
   std::size_t fixtures(std::size_t k) const { return obstacle_fixtures_[k]; }
 
+  /// The shortest obstacle edge Box2D was given (scene units) and its obstacle's id.
+  struct Thinnest {
+    double length = HUGE_VAL;
+    std::string obstacle;
+  };
+
   /// What a fixture stands for (its user data indexes tags_).
   struct Tag {
     int64_t particle = -1;  ///< particle index, or -1
@@ -65,6 +73,8 @@ class Box2dBackend {
   void add_obstacles(const CreateContext& ctx, float threshold);
   /// The particles as circle bodies (constructor stage).
   void add_particles(const CreateContext& ctx, bool friction, float threshold);
+  /// Throws before a step Box2D cannot take as asked (see the definition).
+  void check_particles(const MutableState& st, double dt) const;
   void on_presolve(b2Contact* c);
   void close_events_of(int64_t particle);
   double vn_now(const Pending& p) const;
@@ -81,6 +91,7 @@ class Box2dBackend {
   std::vector<double> track_t_;  ///< per particle: time and Box2D position of the last
   std::vector<b2Vec2> track_x_;  ///< known point of its path this step (for times of impact)
   std::vector<Pending> pending_;
+  Thinnest thinnest_;
   double scale_ = 1.0;
   int velocity_iterations_ = 8;
   int position_iterations_ = 3;

@@ -214,7 +214,7 @@ TEST_CASE("a ball faster than Box2D's speed cap is reported or handled by the sc
   const std::string wall =
       R"([{"id": "wall", "shape": {"type": "box", "center": [2.6, 0], "half_size": [0.1, 1]}}])";
   const std::string e = error_of(scene_text(wall, ball, "{}", 0.01, 0.2));
-  CHECK_THAT(e, Contains("b2_maxTranslation") && Contains("length_scale < 6.667"));
+  CHECK_THAT(e, Contains("b2_maxTranslation") && Contains("length_scale between 0.025 and 6.667"));
 
   const Scene scene =
       parse_scene(scene_text(wall, ball, R"({"length_scale": 5})", 0.01, 0.2), "fast.json", ".");
@@ -235,6 +235,23 @@ TEST_CASE("a ball faster than Box2D's speed cap is reported or handled by the sc
   REQUIRE(events.size() >= 1);
   // t* = (2.5 - 0.05) / 30
   CHECK(events[0].t == Approx(2.45 / 30.0).margin(1e-4));
+}
+
+// The speed check looks at every particle and names the fastest. Here the wall is 0.0003
+// thick: Box2D needs its edges longer than b2_linearSlop = 0.005 units, so length_scale >
+// 0.005 / 0.0003 = 16.67, while 300 m/s at dt = 0.01 needs length_scale < 2 / 3: no scale
+// works, and the largest time step that would is 2 / (300 * 16.67) = 4e-4 s.
+TEST_CASE("box2d's speed refusal names the fastest particle and says when no scale works") {
+  const std::string balls = R"({"x": [0, 0], "v": [30, 0], "mass": 1, "radius": 0.05},
+                               {"x": [0, 1], "v": [300, 0], "mass": 1, "radius": 0.05})";
+  const std::string thin =
+      R"([{"id": "thin", "shape": {"type": "box", "center": [2.6, 0], "half_size": [0.00015, 1]}}])";
+  const std::string e = error_of(scene_text(thin, balls, "{}", 0.01, 0.2));
+  CHECK_THAT(e, Contains("particle 1 at t = 0: speed 300 moves it 60 Box2D units in one step") &&
+                    Contains("2 particle(s) over") &&
+                    Contains("no length scale works at dt = 0.01: below 0.6667 the thinnest wall "
+                             "(an edge of 0.0003 in obstacle 'thin') is shorter than "
+                             "b2_linearSlop; use a time step below 0.0004"));
 }
 
 TEST_CASE("concave polygons decompose into convex pieces of at most 8 vertices") {

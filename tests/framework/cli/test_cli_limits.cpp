@@ -106,6 +106,39 @@ TEST_CASE("limits: the sdf backend refuses numbers its arithmetic cannot carry")
   CHECK(s["status"] != "ok");
 }
 
+TEST_CASE("limits: box2d's preconditions are checked before Box2D is called") {
+  const auto dir = test::temp_dir("limits-box2d");
+  auto ball = [](const std::string& x, const std::string& r, const std::string& m = "1") {
+    return R"({"x": )" + x + R"(, "v": [1, 0], "radius": )" + r + R"(, "mass": )" + m + "}";
+  };
+  // each of these aborted in b2Assert (exit 134), in validate too
+  check_bad_input("validate " + write_scene(dir, "tiny.json", "box2d", ball("[0, 0]", "1e-300")),
+                  "length scale 1e+300 (1 / the smallest particle radius 1e-300) is outside the "
+                  "range the box2d backend can use, [1e-30, 1e+30]");
+  check_bad_input("validate " + write_scene(dir, "huge.json", "box2d", ball("[0, 0]", "1e40")),
+                  "length scale 1e-40 (1 / the smallest particle radius 1e+40) is outside");
+  check_bad_input("validate " + write_scene(dir, "far.json", "box2d", ball("[1e39, 0]", "0.05")),
+                  "particles[0]: position (2e+40, 0) Box2D units is beyond the limit of 1e+04 "
+                  "(float rounding would exceed b2_linearSlop / 8) at length scale 20");
+  check_bad_input(
+      "validate " + write_scene(dir, "box.json", "box2d", ball("[0, 0]", "0.05"),
+                                R"([{"id": "b", "shape": {"type": "box", "center": [1e5, 0],
+                                     "half_size": [1, 1]}}])"),
+      "box.json: obstacles[0].shape: unsupported by box2d (obstacle 'b'): a polygon piece: (");
+  check_bad_input("validate " + (dir / "box.json").string(),
+                  "Box2D units is beyond the limit of 1e+04 (float rounding would exceed "
+                  "b2_linearSlop / 8) at length scale 20");
+  check_bad_input(
+      "validate " + write_scene(dir, "heavy.json", "box2d", ball("[0, 0]", "0.05", "1e40")),
+      "particles[0]: mass 1e+40 is outside the range Box2D's float can use, [1e-30, 1e+30]");
+  check_bad_input(
+      "validate " + write_scene(dir, "sliver.json", "box2d", ball("[0, 0]", "0.05"),
+                                R"([{"id": "s", "shape": {"type": "polygon",
+                                     "points": [[1, 0], [2, 0], [3, 1e-10]]}}])"),
+      "sliver.json: obstacles[0].shape: unsupported by box2d (obstacle 's'): a polygon piece: "
+      "degenerate for Box2D");
+}
+
 TEST_CASE("limits: a truncated plugin file is named and skipped unless it is needed") {
   const auto dir = test::temp_dir("limits-plugin");
   const std::filesystem::path good = std::filesystem::path(PINSIM_BIN).parent_path().parent_path() /
