@@ -5,6 +5,7 @@
 #include <chrono>
 #include <memory>
 
+#include "core/format.hpp"
 #include "core/recorder.hpp"
 
 namespace pinsim {
@@ -68,9 +69,9 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
     result.exit_code = 1;
     summary["error"] = {
         {"kind", "numeric"}, {"numeric", e.kind_name()}, {"message", e.what()}, {"step", e.step},
-        {"t", e.t},          {"particle", e.particle}};
-    spdlog::error("{}: step {} (t = {}), particle {}: {}", scene.label, e.step, e.t, e.particle,
-                  e.what());
+        {"t", e.t},          {"particle", e.particle},   {"plugin", e.plugin}};
+    spdlog::error("{}: step {} (t = {}), particle {}{}: {}", scene.label, e.step, num(e.t),
+                  e.particle, e.plugin.empty() ? "" : ", " + e.plugin, e.what());
   } catch (const std::exception& e) {
     status = "error";
     result.exit_code = 1;

@@ -178,16 +178,20 @@ void read_output(const nlohmann::json& d, const Loc& root, Scene& s) {
   if (s.output_every == 0) (root / "output" / "every").fail("must be >= 1, got 0");
 }
 
-// checks: {"energy_blowup" > 0, "energy_every" >= 1}.
+// checks: {"energy_blowup" > 0, "energy_every" >= 1, "kinetic_growth" >= 2 or 0}.
 void read_checks(const nlohmann::json& d, const Loc& root, Scene& s) {
   if (!d.contains("checks")) return;
   const auto& c = d.at("checks");
   require_object(c, root / "checks");
-  check_keys(c, {"energy_blowup", "energy_every"}, root / "checks");
+  check_keys(c, {"energy_blowup", "energy_every", "kinetic_growth"}, root / "checks");
   s.energy_blowup = read_number_or(c, "energy_blowup", s.energy_blowup, root / "checks");
   if (!(s.energy_blowup > 0.0)) (root / "checks" / "energy_blowup").fail("must be > 0");
   s.energy_every = read_count_or(c, "energy_every", s.energy_every, root / "checks");
   if (s.energy_every == 0) (root / "checks" / "energy_every").fail("must be >= 1, got 0");
+  s.kinetic_growth = read_number_or(c, "kinetic_growth", s.kinetic_growth, root / "checks");
+  if (!(s.kinetic_growth == 0.0 || (s.kinetic_growth >= 2.0 && s.kinetic_growth < HUGE_VAL)))
+    (root / "checks" / "kinetic_growth")
+        .fail("must be 0 (off) or a number >= 2, got " + num(s.kinetic_growth));
 }
 
 }  // namespace

@@ -43,6 +43,7 @@ struct Scene {
   uint64_t output_every = 1;     ///< write the trajectory every N steps
   double energy_blowup = 1e3;    ///< stop when |E - E0| exceeds this many times the energy scale
   uint64_t energy_every = 100;   ///< check energy every N steps
+  double kinetic_growth = 32.0;  ///< G of the per-step kinetic energy bound; 0 = off
 
   /// Number of steps: round(duration / dt).
   uint64_t steps() const;

@@ -70,7 +70,12 @@ Simulation::Simulation(const Scene& scene, PluginLoader& loader, const RunOption
   e_scale_ = kinetic_energy(state_);
   for (const auto& f : forces_)
     if (f->has_energy()) e_scale_ += std::abs(f->energy(state_.view()));
+  checks_.start(state_, e_scale_, scene_.kinetic_growth);
   if (!(e_scale_ > 0.0)) e_scale_ = 1.0;
+  k_at_check_.resize(static_cast<Eigen::Index>(state_.size()));
+  for (Eigen::Index i = 0; i < k_at_check_.size(); ++i)
+    k_at_check_[i] =
+        state_.inv_mass[i] > 0.0 ? 0.5 * state_.v.col(i).squaredNorm() / state_.inv_mass[i] : 0.0;
 }
 
 Simulation::~Simulation() = default;
@@ -89,33 +94,12 @@ void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f) {
   check_finite_forces(s, f);
 }
 
-void Simulation::check_finite_forces(const State& s, const Eigen::Matrix2Xd& f) const {
-  if (f.allFinite()) return;
-  // Find the first particle and the first plugin that produced a non-finite force.
-  const pinsim_state_view view = s.view();
-  Eigen::Matrix2Xd one(2, s.x.cols());
-  for (const auto& force : forces_) {
-    one.setZero();
-    force->add_force(view, one.data());
-    for (Eigen::Index i = 0; i < one.cols(); ++i)
-      if (!one.col(i).allFinite())
-        throw NumericError(NumericError::Kind::NonFinite,
-                           "non-finite force (" + std::to_string(one(0, i)) + ", " +
-                               std::to_string(one(1, i)) + ") on particle " + std::to_string(i) +
-                               " from " + force->context() + " (plugin '" + force->plugin().name() +
-                               "')",
-                           step_ + 1, s.t, i);
-  }
-  for (Eigen::Index i = 0; i < f.cols(); ++i)
-    if (!f.col(i).allFinite())
-      throw NumericError(NumericError::Kind::NonFinite,
-                         "non-finite total force on particle " + std::to_string(i), step_ + 1, s.t,
-                         i);
-}
-
 void Simulation::drift(State& s, double dt) {
   const pinsim_event_sink sink{&events_, &emit_event};
+  const bool own = &s == &state_;
+  if (own) checks_.before_drift(s);
   backend_->advance(s, dt, &sink);
+  if (own) checks_.after_drift(s);
 }
 
 void Simulation::assemble_jacobians(const State& s, Eigen::SparseMatrix<double>& dfdx,
@@ -149,18 +133,34 @@ void Simulation::assemble_jacobians(const State& s, Eigen::SparseMatrix<double>&
   ++jacobian_evals_;
 }
 
-void Simulation::check_finite_state() const {
-  const auto& s = state_;
-  for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
-    if (!s.x.col(i).allFinite() || !s.v.col(i).allFinite())
-      throw NumericError(NumericError::Kind::NonFinite,
-                         "non-finite state of particle " + std::to_string(i) + ": x = (" +
-                             std::to_string(s.x(0, i)) + ", " + std::to_string(s.x(1, i)) +
-                             "), v = (" + std::to_string(s.v(0, i)) + ", " +
-                             std::to_string(s.v(1, i)) + ") after backend '" +
-                             backend_->plugin().name() + "'",
-                         step_ + 1, s.t, i);
+int64_t Simulation::stiffest_force(const State& s, double h, double& weight) {
+  const pinsim_state_view view = s.view();
+  int64_t best = -1;
+  weight = 0.0;
+  for (std::size_t k = 0; k < forces_.size(); ++k) {
+    const ForceInstance& f = *forces_[k];
+    std::vector<Eigen::Triplet<double>> tx, tv;
+    const pinsim_triplet_sink sx{&tx, &add_triplet}, sv{&tv, &add_triplet};
+    const bool has_x = f.provides_dfdx(), has_v = f.provides_dfdv();
+    if (has_x || has_v) f.add_jacobians(view, has_x ? &sx : nullptr, has_v ? &sv : nullptr);
+    if (!has_x) fd_jacobian(f, s, false, tx);
+    if (!has_v && f.velocity_dependent()) fd_jacobian(f, s, true, tv);
+    double w = 0.0;
+    auto weigh = [&](const std::vector<Eigen::Triplet<double>>& t, double factor) {
+      for (const auto& e : t) {
+        const double a = factor * std::abs(e.value()) * s.inv_mass[e.row() / 2];
+        if (!(a <= w)) w = a;  // a NaN weighs most
+      }
+    };
+    weigh(tx, h * h);
+    weigh(tv, h);
+    if (std::isnan(w) || w > weight) {
+      weight = w;
+      best = static_cast<int64_t>(k);
+    }
+    if (std::isnan(w)) break;  // nothing weighs more
   }
+  return best;
 }
 
 double Simulation::kinetic_energy(const State& s) const {
@@ -184,38 +184,12 @@ bool Simulation::energy_complete() const {
   return true;
 }
 
-void Simulation::check_energy() {
-  const double e = kinetic_energy(state_) + potential_energy(state_);
-  const double drift = std::abs(e - e0_) / e_scale_;
-  if (drift > max_drift_) max_drift_ = drift;
-  if (e - e0_ > scene_.energy_blowup * e_scale_) {
-    // Blame the particle with the largest kinetic energy.
-    Eigen::Index worst = 0;
-    double worst_ke = -1.0;
-    for (Eigen::Index i = 0; i < state_.x.cols(); ++i) {
-      const double ke =
-          state_.inv_mass[i] > 0.0 ? 0.5 * state_.v.col(i).squaredNorm() / state_.inv_mass[i] : 0.0;
-      if (ke > worst_ke) {
-        worst_ke = ke;
-        worst = i;
-      }
-    }
-    throw NumericError(
-        NumericError::Kind::EnergyBlowup,
-        "energy blow-up: E = " + std::to_string(e) + " from E0 = " + std::to_string(e0_) +
-            " (growth " + std::to_string(drift) +
-            " x the initial energy scale, limit checks.energy_blowup = " +
-            std::to_string(scene_.energy_blowup) + "); fastest particle " + std::to_string(worst),
-        step_, state_.t, worst);
-  }
-}
-
 void Simulation::step() {
   // Time at the end of the step from the step count, so t carries no accumulated rounding.
   const double t_end = static_cast<double>(step_ + 1) * scene_.dt;
   events_.clear();
   integrator_->step(*this, scene_.dt);
-  check_finite_state();
+  if (const StepFinding found = checks_.check(state_)) throw_step_finding(found, t_end);
   state_.t = t_end;
   ++step_;
   if (step_ % scene_.energy_every == 0) check_energy();

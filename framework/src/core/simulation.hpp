@@ -8,11 +8,13 @@
 #include <pinsim/state.hpp>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/plugin_instance.hpp"
 #include "core/plugin_loader.hpp"
 #include "core/scene.hpp"
+#include "core/step_checks.hpp"
 
 namespace pinsim {
 
@@ -23,11 +25,18 @@ class NumericError : public std::runtime_error {
  public:
   enum class Kind {
     NonFinite,      ///< a NaN or an infinity in a force or the state
-    EnergyBlowup,   ///< the total energy grew past checks.energy_blowup
+    EnergyBlowup,   ///< a particle's kinetic energy grew past checks.kinetic_growth in one
+                    ///< step, or the total energy past checks.energy_blowup
     SolverFailure,  ///< an implicit integrator's linear solve did not converge
   };
-  NumericError(Kind kind, const std::string& what, uint64_t step, double t, int64_t particle)
-      : std::runtime_error(what), kind(kind), step(step), t(t), particle(particle) {}
+  NumericError(Kind kind, const std::string& what, uint64_t step, double t, int64_t particle,
+               std::string plugin = "")
+      : std::runtime_error(what),
+        kind(kind),
+        step(step),
+        t(t),
+        particle(particle),
+        plugin(std::move(plugin)) {}
   /// "non_finite", "energy_blowup" or "solver_failure" (summary.json, stress classes).
   const char* kind_name() const {
     return kind == Kind::NonFinite      ? "non_finite"
@@ -35,9 +44,10 @@ class NumericError : public std::runtime_error {
                                         : "solver_failure";
   }
   Kind kind;
-  uint64_t step;     ///< the step during which it was detected, counting from 1
-  double t;          ///< time at detection, s
-  int64_t particle;  ///< particle where it began
+  uint64_t step;       ///< the step during which it was detected, counting from 1
+  double t;            ///< time of the state in which it was found, s
+  int64_t particle;    ///< particle where it began, or -1
+  std::string plugin;  ///< who is involved: "forces[2] 'linear_spring'", "backend 'sdf'", ...
 };
 
 /// Choices that override the scene (from the command line).
@@ -55,7 +65,9 @@ class Simulation {
 
   /// Advances one time step dt. The step owns its contact events: it clears events() first,
   /// then the backend adds the step's contacts (Box2D v3's b2World_Step does the same).
-  /// Throws NumericError on NaN/Inf (checked every step) or energy blow-up.
+  /// Throws NumericError on NaN/Inf or a kinetic energy growing past checks.kinetic_growth
+  /// (both checked every step), or a total energy past checks.energy_blowup (every
+  /// checks.energy_every steps). The error names the particle and the plugin involved.
   void step();
 
   /// Presses or releases a named input (a flipper, the plunger) at the current state time,
@@ -75,6 +87,12 @@ class Simulation {
   /// left zero (their dofs never move).
   void assemble_jacobians(const State& s, Eigen::SparseMatrix<double>& dfdx,
                           Eigen::SparseMatrix<double>& dfdv);
+  /// The force whose Jacobian weighs most in implicit Euler's system M - h df/dv - h^2 df/dx
+  /// at s: the largest (h^2 |df/dx| + h |df/dv|) / m over the entries of free rows (the
+  /// square of h w for a spring), returned in `weight`; -1 if no force has a Jacobian entry.
+  int64_t stiffest_force(const State& s, double h, double& weight);
+  /// "forces[2] 'linear_spring'": force k by its place in the scene's forces array.
+  std::string force_label(std::size_t k) const;
   /// Number of assemble_jacobians calls.
   uint64_t jacobian_evaluations() const { return jacobian_evals_; }
 
@@ -103,8 +121,13 @@ class Simulation {
 
  private:
   void check_finite_forces(const State& s, const Eigen::Matrix2Xd& f) const;
-  void check_finite_state() const;
+  [[noreturn]] void throw_step_finding(const StepFinding& found, double t_end) const;
   void check_energy();
+  /// The force contributing the largest |f| to particle i at s (its magnitude in `mag`), or
+  /// -1 if none acts on it; a non-finite contribution counts as the largest.
+  int64_t strongest_force(const State& s, Eigen::Index i, double& mag) const;
+  /// "; largest force on it: forces[0] 'gravity' (|f| = 9.81)", and the plugin for errors.
+  std::string strongest_force_text(const State& s, Eigen::Index i, std::string& plugin) const;
 
   Scene scene_;
   State state_;
@@ -117,6 +140,8 @@ class Simulation {
   uint64_t force_evals_ = 0;
   uint64_t jacobian_evals_ = 0;
   std::vector<bool> fd_warned_;  ///< per force: finite-difference warning already given
+  StepChecks checks_;
+  Eigen::VectorXd k_at_check_;  ///< kinetic energy per particle at the last energy check
   double e0_ = 0.0;
   double e_scale_ = 0.0;
   double max_drift_ = 0.0;

@@ -47,7 +47,8 @@ std::vector<std::pair<std::string, json>> settings(const Point& p, bool timing) 
       {"time.dt", p.dt},
       {"integrator", p.integrator},
       {"checks.energy_every", timing ? json(1000000000) : json(1)},
-      {"checks.energy_blowup", 1e300}};
+      {"checks.energy_blowup", 1e300},
+      {"checks.kinetic_growth", 0}};
   if (!p.backend.is_null()) set.emplace_back("backend", p.backend);
   return set;
 }

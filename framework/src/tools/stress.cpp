@@ -91,7 +91,8 @@ Outcome run_point(const Case& c, const Point& p, PluginLoader& loader) {
   std::vector<std::pair<std::string, json>> set = {{"time.dt", p.dt},
                                                    {"integrator", p.integrator},
                                                    {"checks.energy_every", 1},
-                                                   {"checks.energy_blowup", c.blowup}};
+                                                   {"checks.energy_blowup", c.blowup},
+                                                   {"checks.kinetic_growth", 0}};
   if (!p.backend.is_null()) set.emplace_back("backend", p.backend);
   if (!c.stiffness_path.empty()) set.emplace_back(c.stiffness_path, p.stiffness);
   const Scene scene = sweep::make_scene(doc, set, c.name, c.base);

@@ -1,0 +1,59 @@
+// The checks run after every step: a finite state, and a bound on the growth of each
+// particle's kinetic energy that legitimate steps never reach.
+#pragma once
+
+#include <Eigen/Core>
+#include <cstdint>
+#include <pinsim/state.hpp>
+
+namespace pinsim {
+
+/// What the check after a step found; `particle` is -1 when all is well.
+struct StepFinding {
+  enum class What { None, NonFinite, Growth };
+  /// Where a non-finite value first appeared within the step.
+  enum class Phase { BeforeDrift, Drift, AfterDrift };
+  What what = What::None;
+  Eigen::Index particle = -1;
+  Phase phase = Phase::BeforeDrift;  ///< NonFinite only
+  Eigen::Vector2d v_in;              ///< the particle's velocity entering the drift
+  double k_prev = 0.0;               ///< Growth: K_i^n
+  double k_free = 0.0;               ///< Growth: K_i^free
+  double scale = 0.0;                ///< Growth: S_n
+  explicit operator bool() const { return what != What::None; }
+};
+
+/// The growth bound, per particle i and step n -> n+1 (derivation in step_checks.cpp):
+///   K_i^free > G (K_i^n + S_n)  fails the step, from the second step on,
+/// where K_i^n = m_i |v_i^n|^2 / 2 at the end of step n, K_i^free is the same for the end
+/// velocity without the change the backend made during its drift (contacts), S_n is the
+/// largest total kinetic energy so far (either kind) or the scene's initial energy scale,
+/// and G = checks.kinetic_growth (0 turns the bound off).
+class StepChecks {
+ public:
+  /// `scale0`: the initial energy scale, K^0 + sum |U_f(x^0)|; `growth`: G (0 = off).
+  void start(const State& s, double scale0, double growth);
+  /// Around the backend's drift: the velocities entering and leaving it.
+  void before_drift(const State& s) { v_in_ = s.v; }
+  void after_drift(const State& s) {
+    v_out_ = s.v;
+    drifted_ = true;
+  }
+  /// After the step: finite x and v, then the growth bound. Only reads the state; on a
+  /// finding the recorded energies stay those of the last good step.
+  StepFinding check(const State& s);
+
+ private:
+  StepFinding non_finite(const State& s) const;
+  StepFinding growth(const State& s) const;
+
+  double growth_ = 0.0;
+  double scale_ = 0.0;  ///< S_n
+  uint64_t steps_ = 0;
+  bool drifted_ = false;
+  Eigen::VectorXd half_mass_;   ///< m_i / 2, 0 for pinned particles
+  Eigen::VectorXd k_, k_next_;  ///< K_i^n, and K_i^{n+1} being computed
+  Eigen::Matrix2Xd v_in_, v_out_;
+};
+
+}  // namespace pinsim
