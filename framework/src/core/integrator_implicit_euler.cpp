@@ -25,6 +25,19 @@ namespace {
 /// solves it instead. If that fails too (a singular system, or a residual above 1e-8 of
 /// |b|), the step throws NumericError (solver_failure) rather than use an unconverged
 /// velocity. stats() reports the solves for summary.json.
+///
+/// A converged solve can still be meaningless. CG stops at |A dv - b| <= 1e-12 |b|, and a
+/// very stiff force makes |b| huge (h^2 K v) while the soft directions of A keep eigenvalues
+/// near the masses. When the forces' Jacobians are negative semidefinite (springs in tension,
+/// damping), A = M + h^2 (-K) + h (-D) >= M; with C = M^-1/2 A M^-1/2 >= I the error
+/// e = dv - dv* = A^-1 r (r = A dv - b) obeys, in the mass-weighted (kinetic) norm,
+///   |e|_M^2 = r^T M^-1/2 C^-2 M^-1/2 r <= r^T M^-1 r,   |e|_M <= (sum_i r_i^2 / m_i)^1/2.
+/// The solve is refused when that bound exceeds 1e-3 |v_{n+1}|_M (a 0.1 % velocity error in
+/// one step; with ks = 1e300 the bound is some 1e280 times |v|), naming the particle with the
+/// largest r_i^2 / m_i and the force with the largest (h^2 |df/dx| + h |df/dv|) / m (for a
+/// spring, (h w)^2), the one that made the system ill-conditioned. Stiff but representable
+/// systems pass: the bound is about 1e-12 (h w)^2 |dv|_M, under 1e-3 |v|_M up to
+/// (h w)^2 ~ 1e9.
 class ImplicitEuler : public Integrator {
  public:
   void step(Simulation& sim, double h) override {
@@ -77,15 +90,77 @@ class ImplicitEuler : public Integrator {
         throw NumericError(
             NumericError::Kind::SolverFailure,
             fmt::format("implicit_euler: the linear solve failed: conjugate gradients stopped "
-                        "at relative residual {:.3g} after {} iterations, and sparse LU {}",
+                        "at relative residual {:.3g} after {} iterations, and sparse LU {}{}",
                         cg_.error(), cg_.iterations(),
                         factored ? fmt::format("left relative residual {:.3g}", residual)
-                                 : std::string("could not factorize the system (singular?)")),
-            sim.step_index() + 1, s.t, -1);
+                                 : std::string("could not factorize the system (singular?)"),
+                        stiffness_text(sim, s, h)),
+            sim.step_index() + 1, s.t, most_demanding(b, m), blame(sim, s, h));
     }
+    check_accuracy(sim, s, b, dv, m, h);
     worst_residual_ = std::max(worst_residual_, residual);
     Eigen::Map<Eigen::VectorXd>(s.v.data(), n) += dv;
     sim.drift(s, h);
+  }
+
+  /// Refuses a solve whose velocity error bound (sum r_i^2 / m_i)^1/2 exceeds
+  /// 1e-3 |v_{n+1}|_M (see above).
+  void check_accuracy(Simulation& sim, const State& s, const Eigen::VectorXd& b,
+                      const Eigen::VectorXd& dv, const Eigen::VectorXd& m, double h) {
+    const Eigen::VectorXd r = A_ * dv - b;
+    double r2 = 0.0, v2 = 0.0, worst = 0.0;
+    Eigen::Index at = -1;
+    for (Eigen::Index i = 0; i < r.size(); ++i) {
+      if (!(m[i] > 0.0)) continue;  // pinned: r_i = 0
+      const double vi = s.v.data()[i] + dv[i];
+      v2 += m[i] * vi * vi;
+      const double e = r[i] * r[i] / m[i];
+      r2 += e;
+      if (at < 0 || !(e <= worst)) {  // a NaN is the worst
+        worst = e;
+        at = i;
+      }
+    }
+    if (r2 <= 1e-6 * v2) return;
+    throw NumericError(
+        NumericError::Kind::SolverFailure,
+        fmt::format("implicit_euler: the linear solve cannot be trusted: its velocity error "
+                    "bound (sum r_i^2 / m_i)^1/2 = {:.6g} exceeds 1e-3 x |v|_M = {:.6g} (the "
+                    "system M - h df/dv - h^2 df/dx is too ill-conditioned for double "
+                    "precision){}",
+                    std::sqrt(r2), 1e-3 * std::sqrt(v2), stiffness_text(sim, s, h)),
+        sim.step_index() + 1, s.t, at / 2, blame(sim, s, h));
+  }
+
+  /// The particle whose dofs ask for the largest velocity change |b_i| / m_i (a NaN first).
+  static int64_t most_demanding(const Eigen::VectorXd& b, const Eigen::VectorXd& m) {
+    Eigen::Index at = -1;
+    double most = 0.0;
+    for (Eigen::Index i = 0; i < b.size(); ++i) {
+      if (!(m[i] > 0.0)) continue;
+      const double d = std::abs(b[i]) / m[i];
+      if (at < 0 || !(d <= most)) {
+        most = d;
+        at = i;
+        if (std::isnan(d)) break;
+      }
+    }
+    return at < 0 ? -1 : at / 2;
+  }
+
+  static std::string blame(Simulation& sim, const State& s, double h) {
+    double w = 0.0;
+    const int64_t k = sim.stiffest_force(s, h, w);
+    return k < 0 ? std::string("integrator 'implicit_euler'")
+                 : sim.force_label(static_cast<std::size_t>(k));
+  }
+
+  static std::string stiffness_text(Simulation& sim, const State& s, double h) {
+    double w = 0.0;
+    const int64_t k = sim.stiffest_force(s, h, w);
+    if (k < 0) return "";
+    return fmt::format("; stiffest force: {} ((h^2 |df/dx| + h |df/dv|) / m up to {:.6g})",
+                       sim.force_label(static_cast<std::size_t>(k)), w);
   }
 
   nlohmann::json stats() const override {

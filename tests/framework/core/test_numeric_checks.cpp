@@ -157,6 +157,24 @@ TEST_CASE("numeric checks: total-energy blow-up names the particle and plugin, r
   CHECK(readable(m));
 }
 
+TEST_CASE("numeric checks: implicit Euler with ks = 1e300 is the solver's failure") {
+  test::FpTrapsOff traps;
+  const RunResult r = run(strand(0.001, 1e300, "implicit_euler"));
+  CHECK(r.exit_code == 1);
+  const auto& e = r.summary["error"];
+  CHECK(e["numeric"] == "solver_failure");
+  CHECK(e["plugin"] == "forces[1] 'damped_spring'");
+  CHECK(e["particle"].get<int>() >= 1);
+  const std::string m = e["message"];
+  CHECK_THAT(m, StartsWith("implicit_euler: the linear solve cannot be trusted") &&
+                    Contains("too ill-conditioned for double precision") &&
+                    Contains("stiffest force: forces[1] 'damped_spring'"));
+  CHECK_THAT(m, !Contains("backend"));
+  CHECK(readable(m));
+  // A stiff but representable chain passes: ks = 1e7, (h w)^2 = 1e-6 * 1e9 = 1e3.
+  CHECK(run(strand(0.001, 1e7, "implicit_euler")).exit_code == 0);
+}
+
 TEST_CASE("numeric checks: legitimate motion stays inside the growth bound") {
   // Free fall from rest at y = 0, where the initial energy scale is 0: K grows as n^2, a
   // factor ((n + 1) / n)^2 <= 4 per step from the second step on, inside G (K + S) even at
