@@ -10,6 +10,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "core/format.hpp"
 #include "core/runner.hpp"
 
 namespace pinsim::cli {
@@ -51,11 +52,11 @@ int run_command(const RunArgs& a) {
   RunResult r = run_scene(scene, loader, rs);
   if (tty) std::fprintf(stderr, "\r%*s\r", 40, "");
   const auto& s = r.summary;
+  auto text = [](const nlohmann::json& x) { return x.is_number() ? num(x.get<double>()) : "null"; };
   spdlog::info("{}: {} after {} steps (t = {} s) in {:.3f} s wall; {} contacts; energy {} -> {}",
                scene.label, s["status"].get<std::string>(), s["steps"].get<uint64_t>(),
-               s["t_end"].get<double>(), s["wall_time_s"].get<double>(),
-               s["contacts"].get<uint64_t>(), s["energy"]["start"].dump(),
-               s["energy"]["end"].dump());
+               text(s["t_end"]), s["wall_time_s"].get<double>(), s["contacts"].get<uint64_t>(),
+               text(s["energy"]["start"]), text(s["energy"]["end"]));
   if (rs.out) spdlog::info("output written to {}", rs.out->string());
   return r.exit_code;
 }
