@@ -116,16 +116,25 @@ TEST_CASE("cli: a flag the parser refuses is exit 2, naming the flag and what it
   CHECK(r.code == 0);
 }
 
-TEST_CASE("cli: every shipped scene in configs/ validates") {
+TEST_CASE("cli: every shipped scene in configs/ validates and runs to ok with the checks") {
+  // The default numeric checks (finite state and the kinetic energy growth bound every step,
+  // the total energy every 100 steps) must never stop a shipped scene.
+  const auto dir = test::temp_dir("cli-shipped");
   int n = 0;
-  for (const auto& e : std::filesystem::directory_iterator(configs)) {
-    const std::string name = e.path().filename().string();
-    if (e.path().extension() != ".json" || name.ends_with(".schema.json")) continue;
-    CAPTURE(e.path().string());
-    const auto r = pinsim_cli("validate " + e.path().string());
-    CHECK(r.code == 0);
-    CHECK_THAT(r.output, Contains(": ok:"));
-    ++n;
+  for (const std::string sub : {"", "/crosscheck", "/grading/scenes"}) {
+    for (const auto& e : std::filesystem::directory_iterator(configs + sub)) {
+      const std::string name = e.path().filename().string();
+      if (e.path().extension() != ".json" || name.ends_with(".schema.json")) continue;
+      CAPTURE(e.path().string());
+      auto r = pinsim_cli("validate " + e.path().string());
+      CHECK(r.code == 0);
+      CHECK_THAT(r.output, Contains(": ok:"));
+      r = pinsim_cli("-q run " + e.path().string() + " --overwrite --out " + dir.string());
+      CHECK(r.code == 0);
+      const auto s = nlohmann::json::parse(test::read_file(dir / "summary.json"));
+      CHECK(s["status"] == "ok");
+      ++n;
+    }
   }
-  CHECK(n >= 1);
+  CHECK(n >= 20);
 }
