@@ -2,9 +2,12 @@
 #pragma once
 
 #include <fenv.h>
+#include <sys/types.h>
 
 #include <filesystem>
+#include <functional>
 #include <string>
+#include <vector>
 
 namespace pinsim::test {
 
@@ -44,5 +47,17 @@ CommandResult shell(const std::string& command);
 
 /// Runs the pinsim program of this build with these arguments (shell syntax).
 CommandResult pinsim_cli(const std::string& args);
+
+/// Starts the pinsim program of this build with `args` (no shell), stdout and stderr into
+/// `log`, with SIGINT, SIGTERM, SIGHUP and SIGQUIT at their defaults (a test run in the
+/// background may inherit them ignored). Returns its pid.
+pid_t spawn_pinsim(const std::vector<std::string>& args, const std::filesystem::path& log);
+
+/// Waits for child `pid`: its exit code, or -N if signal N killed it.
+int wait_pinsim(pid_t pid);
+
+/// Polls `ready` every 10 ms until it holds (true) or `seconds` pass (false): for waiting on
+/// a progress file instead of sleeping blindly.
+bool wait_until(const std::function<bool()>& ready, double seconds = 120.0);
 
 }  // namespace pinsim::test

@@ -2,8 +2,6 @@
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
-#include <atomic>
-#include <csignal>
 #include <cstdio>
 #include <iostream>
 #include <memory>
@@ -12,12 +10,10 @@
 #include "commands.hpp"
 #include "core/format.hpp"
 #include "core/runner.hpp"
+#include "core/stop_signals.hpp"
 
 namespace pinsim::cli {
 namespace {
-
-std::atomic<bool> g_stop{false};
-extern "C" void on_signal(int) { g_stop.store(true); }
 
 struct RunArgs {
   std::string scene;
@@ -35,7 +31,7 @@ int run_command(const RunArgs& a) {
   rs.options.integrator = a.integrator;
   if (!a.out.empty()) rs.out = a.out;
   rs.overwrite = a.overwrite;
-  rs.stop = &g_stop;
+  rs.stop = &stop_signal();
   const bool tty = ::isatty(STDERR_FILENO) && spdlog::get_level() <= spdlog::level::info;
   if (tty) {
     rs.progress = [](double frac, const Simulation& sim) {
@@ -44,8 +40,7 @@ int run_command(const RunArgs& a) {
       std::fflush(stderr);
     };
   }
-  std::signal(SIGINT, on_signal);
-  std::signal(SIGTERM, on_signal);
+  install_stop_handlers();
   spdlog::debug("{}: {} particles, {} force(s), backend {}, {} steps of dt = {}", scene.label,
                 scene.particles.size(), scene.forces.size(), scene.backend.name, scene.steps(),
                 scene.dt);

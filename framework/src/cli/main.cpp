@@ -2,14 +2,19 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <csignal>
 #include <iostream>
 
 #include "commands.hpp"
 #include "core/input_error.hpp"
+#include "core/output_file.hpp"
 #include "core/plugin_instance.hpp"
 #include "core/plugin_loader.hpp"
 
 int main(int argc, char** argv) {
+  // Past a file-size limit a write fails with EFBIG (reported, naming the file) instead of
+  // killing the process.
+  std::signal(SIGXFSZ, SIG_IGN);
   auto logger = spdlog::stderr_color_mt("pinsim");
   logger->set_pattern("%^[%l]%$ %v");
   spdlog::set_default_logger(logger);
@@ -53,6 +58,9 @@ int main(int argc, char** argv) {
   } catch (const pinsim::InputError& e) {
     spdlog::error("{}", e.what());  // bad input: nothing ran
     return 2;
+  } catch (const pinsim::OutputError& e) {
+    spdlog::error("{}", e.what());
+    return 1;  // something ran, or could have: its output could not be written
   } catch (const std::exception& e) {
     spdlog::error("{}", e.what());  // a plugin that cannot be loaded or created, or the system
     return 2;

@@ -1,13 +1,49 @@
 #include "core/recorder.hpp"
 
 #include <charconv>
-#include <fstream>
 #include <stdexcept>
+#include <string_view>
 #include <system_error>
 
 namespace fs = std::filesystem;
 
 namespace pinsim {
+
+const char* const kRunFolderFiles[6] = {"trajectory.csv", "events.csv",  "summary.json",
+                                        "scene.json",     "picture.png", "replay.html"};
+
+namespace {
+/// NAME, NAME.tmp.PID or NAME.crash.PID for a NAME of kRunFolderFiles.
+bool written_by_pinsim(const std::string& name) {
+  for (const char* f : kRunFolderFiles) {
+    const std::string_view n(f);
+    if (name == n) return true;
+    if (name.size() > n.size() && name.compare(0, n.size(), n) == 0 &&
+        (name.compare(n.size(), 5, ".tmp.") == 0 || name.compare(n.size(), 7, ".crash.") == 0))
+      return true;
+  }
+  return false;
+}
+}  // namespace
+
+void remove_run_outputs(const fs::path& dir) {
+  std::vector<fs::path> ours;
+  std::error_code ec;
+  for (fs::directory_iterator it(dir, ec), end; !ec && it != end; it.increment(ec)) {
+    std::error_code type_ec;
+    if (written_by_pinsim(it->path().filename().string()) && !it->is_directory(type_ec))
+      ours.push_back(it->path());
+  }
+  if (ec)
+    throw std::runtime_error(dir.string() + ": cannot list the output folder (" + ec.message() +
+                             ")");
+  for (const fs::path& p : ours) {
+    fs::remove(p, ec);
+    if (ec)
+      throw std::runtime_error(p.string() + ": cannot remove the earlier run's file (" +
+                               ec.message() + ")");
+  }
+}
 
 void append_number(std::string& out, double v) {
   char buf[32];
@@ -22,15 +58,6 @@ void append_int(std::string& out, long long v) {
   out.append(buf, r.ptr);
 }
 
-std::FILE* open_file(const fs::path& p, const char* header) {
-  std::FILE* f = std::fopen(p.c_str(), "w");
-  if (f == nullptr)
-    throw std::runtime_error(p.string() + ": cannot write output file (" +
-                             std::error_code(errno, std::generic_category()).message() + ")");
-  std::fputs(header, f);
-  std::fflush(f);
-  return f;
-}
 }  // namespace
 
 Recorder::Recorder(const fs::path& dir, const Scene& scene, bool overwrite)
@@ -47,30 +74,31 @@ Recorder::Recorder(const fs::path& dir, const Scene& scene, bool overwrite)
       if (fs::exists(dir_ / f, ec))
         throw std::runtime_error(dir_.string() + ": holds an earlier run (" + f +
                                  "); choose another --out or pass --overwrite");
+  } else {
+    remove_run_outputs(dir_);
   }
   // The scene exactly as run (after --set overrides; the embedded one too), so that render,
   // replay and a rerun need nothing else from the run folder.
-  {
-    std::ofstream out(dir_ / "scene.json");
-    out << scene.doc.dump(2) << "\n";
-    if (!out) throw std::runtime_error((dir_ / "scene.json").string() + ": cannot write");
+  write_file_atomically(dir_ / "scene.json", scene.doc.dump(2) + "\n");
+  traj_ = std::make_unique<LineFile>(dir_ / "trajectory.csv", "t,particle,x,y,vx,vy\n");
+  events_ = std::make_unique<LineFile>(
+      dir_ / "events.csv", "t,particle,obstacle,other_particle,x,y,nx,ny,vn_before,vn_after\n");
+}
+
+void Recorder::close() {
+  traj_->close();
+  events_->close();
+}
+
+void Recorder::flush_buffer(LineFile& f) {
+  if (buf_.empty()) return;
+  try {
+    f.append(buf_);
+  } catch (const OutputError&) {
+    buf_.clear();
+    throw;
   }
-  traj_ = open_file(dir_ / "trajectory.csv", "t,particle,x,y,vx,vy\n");
-  events_ = open_file(dir_ / "events.csv",
-                      "t,particle,obstacle,other_particle,x,y,nx,ny,vn_before,vn_after\n");
-}
-
-Recorder::~Recorder() {
-  if (traj_) std::fclose(traj_);
-  if (events_) std::fclose(events_);
-}
-
-void Recorder::flush_buffer(std::FILE* f, std::string& buf) {
-  if (buf.empty()) return;
-  const std::size_t n = std::fwrite(buf.data(), 1, buf.size(), f);
-  std::fflush(f);
-  buf.clear();
-  if (n == 0) throw std::runtime_error(dir_.string() + ": writing output failed (disk full?)");
+  buf_.clear();
 }
 
 void Recorder::write_state(const State& s) {
@@ -85,7 +113,7 @@ void Recorder::write_state(const State& s) {
     }
     buf_ += '\n';
   }
-  flush_buffer(traj_, buf_);
+  flush_buffer(*traj_);
 }
 
 void Recorder::write_events(const std::vector<pinsim_event>& events) {
@@ -104,17 +132,11 @@ void Recorder::write_events(const std::vector<pinsim_event>& events) {
     buf_ += '\n';
   }
   contacts_ += events.size();
-  flush_buffer(events_, buf_);
+  flush_buffer(*events_);
 }
 
 void Recorder::write_summary(const nlohmann::json& summary) {
-  const fs::path tmp = dir_ / "summary.json.tmp";
-  {
-    std::ofstream out(tmp);
-    out << summary.dump(2) << "\n";
-    if (!out) throw std::runtime_error(tmp.string() + ": cannot write summary");
-  }
-  fs::rename(tmp, dir_ / "summary.json");
+  write_file_atomically(dir_ / "summary.json", summary.dump(2) + "\n");
 }
 
 }  // namespace pinsim

@@ -1,49 +1,63 @@
-// Run output: trajectory.csv, events.csv and summary.json, written incrementally so that a
-// failed or interrupted run leaves valid files.
+// Run output: trajectory.csv, events.csv, summary.json and scene.json, written incrementally
+// so that a failed or interrupted run leaves valid files.
 #pragma once
 
 #include <pinsim/abi.h>
 
-#include <cstdio>
 #include <filesystem>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <pinsim/state.hpp>
 #include <string>
 #include <vector>
 
+#include "core/output_file.hpp"
 #include "core/scene.hpp"
 
 namespace pinsim {
 
+/// The files pinsim writes into a run folder (`run`, and `render` / `replay` by default):
+/// what `--overwrite` removes before a run, with the temporaries of these names
+/// (NAME.tmp.PID, NAME.crash.PID). Nothing else in the folder is touched.
+extern const char* const kRunFolderFiles[6];
+
 class Recorder {
  public:
   /// Creates `dir` (and parents) and opens the files. Refuses to replace an earlier run's
-  /// files unless `overwrite`. Throws std::runtime_error naming the folder.
+  /// files unless `overwrite`; with it, first removes the files of kRunFolderFiles (so no
+  /// picture or page of the earlier run stays beside the new files). Throws
+  /// std::runtime_error naming the folder, or OutputError naming a file.
   Recorder(const std::filesystem::path& dir, const Scene& scene, bool overwrite);
-  ~Recorder();
   Recorder(const Recorder&) = delete;
   Recorder& operator=(const Recorder&) = delete;
 
-  /// One row per particle: t,particle,x,y,vx,vy. Complete lines only, flushed.
+  /// One row per particle: t,particle,x,y,vx,vy. Whole lines only; throws OutputError (the
+  /// file then ends with its last whole line).
   void write_state(const State& s);
-  /// One row per contact.
+  /// One row per contact; as write_state.
   void write_events(const std::vector<pinsim_event>& events);
-  /// Writes summary.json atomically (temporary file, then rename).
+  /// Writes summary.json atomically (temporary file, then rename). Throws OutputError.
   void write_summary(const nlohmann::json& summary);
+  /// Closes trajectory.csv and events.csv, checking the closes. Throws OutputError.
+  void close();
 
   const std::filesystem::path& dir() const { return dir_; }
   uint64_t contacts() const { return contacts_; }
 
  private:
-  void flush_buffer(std::FILE* f, std::string& buf);
+  void flush_buffer(LineFile& f);
 
   std::filesystem::path dir_;
   const Scene& scene_;
-  std::FILE* traj_ = nullptr;
-  std::FILE* events_ = nullptr;
+  std::unique_ptr<LineFile> traj_;
+  std::unique_ptr<LineFile> events_;
   std::string buf_;
   uint64_t contacts_ = 0;
 };
+
+/// Removes the files of kRunFolderFiles (and their temporaries) from `dir`. Throws
+/// std::runtime_error naming a file that cannot be removed.
+void remove_run_outputs(const std::filesystem::path& dir);
 
 /// Appends a double in its shortest exact decimal form.
 void append_number(std::string& out, double v);

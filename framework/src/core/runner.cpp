@@ -5,8 +5,10 @@
 #include <chrono>
 #include <memory>
 
+#include "core/crash_summary.hpp"
 #include "core/format.hpp"
 #include "core/recorder.hpp"
+#include "core/stop_signals.hpp"
 
 namespace pinsim {
 
@@ -31,8 +33,10 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
       {"particles", sim.state().size()},
       {"versions", {{"pinsim", PINSIM_VERSION}, {"plugins", plugins}}},
   };
+  std::unique_ptr<CrashSummary> crash;
   if (rec) {
     rec->write_summary(summary);
+    crash = std::make_unique<CrashSummary>(rec->dir(), summary);
     rec->write_state(sim.state());
   }
 
@@ -42,11 +46,15 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
   RunResult result;
   std::string status = "ok";
   uint64_t contacts = 0;
+  bool output_failed = false;
   try {
     for (uint64_t n = 0; n < steps; ++n) {
-      if (settings.stop && settings.stop->load(std::memory_order_relaxed)) {
+      if (const int sig = settings.stop ? settings.stop->load(std::memory_order_relaxed) : 0) {
         status = "interrupted";
-        result.exit_code = 130;
+        result.exit_code = stop_exit_code(sig);
+        summary["signal"] = {{"name", signal_name(sig)}, {"number", sig}};
+        spdlog::warn("{}: stopped by {} after step {} (t = {})", scene.label, signal_name(sig),
+                     sim.step_index(), sim.state().t);
         break;
       }
       sim.step();
@@ -55,6 +63,7 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
         if (!sim.events().empty()) rec->write_events(sim.events());
         if (sim.step_index() % scene.output_every == 0 || n + 1 == steps)
           rec->write_state(sim.state());
+        CrashSummary::set_step(sim.step_index());
       }
       if (settings.progress && (n & 255) == 0) {
         const auto now = std::chrono::steady_clock::now();
@@ -64,6 +73,18 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
         }
       }
     }
+  } catch (const OutputError& e) {
+    status = "error";
+    result.exit_code = 1;
+    output_failed = true;
+    summary["error"] = {{"kind", "output"},
+                        {"message", e.what()},
+                        {"step", sim.step_index()},
+                        {"t", sim.state().t}};
+    spdlog::error(
+        "{}: {}; the run stopped after step {} (t = {}); the files keep every whole "
+        "line written before",
+        scene.label, e.what(), sim.step_index(), sim.state().t);
   } catch (const NumericError& e) {
     status = "error";
     result.exit_code = 1;
@@ -82,7 +103,20 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
     spdlog::error("{}: step {} (t = {}): {}", scene.label, sim.step_index() + 1, sim.state().t,
                   e.what());
   }
-  if (rec && !sim.events().empty() && status != "ok") rec->write_events(sim.events());
+  if (rec && !output_failed) {
+    try {
+      if (!sim.events().empty() && status != "ok") rec->write_events(sim.events());
+      rec->close();
+    } catch (const OutputError& e) {
+      status = "error";
+      result.exit_code = 1;
+      summary["error"] = {{"kind", "output"},
+                          {"message", e.what()},
+                          {"step", sim.step_index()},
+                          {"t", sim.state().t}};
+      spdlog::error("{}: {}", scene.label, e.what());
+    }
+  }
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
@@ -107,7 +141,24 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
   if (const nlohmann::json solver = sim.integrator_stats(); !solver.is_null())
     summary["solver"] = solver;
   summary["state_hash"] = fmt::format("{:016x}", sim.state().hash());
-  if (rec) rec->write_summary(summary);
+  if (rec) {
+    // The run is over: from here, summary.json says how it ended.
+    crash->disarm();
+    try {
+      rec->write_summary(summary);
+    } catch (const OutputError& e) {
+      if (crash->write_instead(summary.dump(2) + "\n") == 0) {
+        spdlog::warn("{}; summary.json written into the space reserved for it", e.what());
+      } else {
+        // The summary of the start ("running") stays: it still parses.
+        spdlog::error("{}: {}", scene.label, e.what());
+        result.exit_code = 1;
+        if (status == "ok") summary["status"] = "error";
+        summary["error"] = {{"kind", "output"}, {"message", e.what()}};
+      }
+    }
+  }
+  crash.reset();
   result.summary = std::move(summary);
   return result;
 }

@@ -15,19 +15,25 @@ struct RunSettings {
   RunOptions options;
   std::optional<std::filesystem::path> out;  ///< output folder, or none
   bool overwrite = false;                    ///< replace an earlier run's files in `out`
-  const std::atomic<bool>* stop = nullptr;   ///< set (e.g. by SIGINT) to end the run cleanly
+  /// Set to a signal's number (stop_signal(), set by SIGINT, SIGTERM, SIGHUP, SIGQUIT) to end
+  /// the run cleanly after the current step.
+  const std::atomic<int>* stop = nullptr;
   /// Called about every 0.2 s of wall time with the fraction done.
   std::function<void(double fraction, const Simulation&)> progress;
 };
 
 struct RunResult {
   nlohmann::json summary;  ///< what summary.json holds
-  int exit_code = 0;       ///< 0 ok, 1 numeric or plugin failure, 130 interrupted
+  /// 0 ok; 1 a numeric, plugin or output failure; 128 + the signal when stopped by one.
+  int exit_code = 0;
 };
 
 /// Builds the simulation and runs it. Scene, load and plugin-creation errors throw (nothing
-/// has run then); failures during the run are caught, recorded in the summary and files,
-/// and returned with a non-zero exit code.
+/// has run then), as does an output folder that cannot be written at the start
+/// (OutputError); failures during the run, a write that fails included, are caught,
+/// recorded in the summary and files, and returned with a non-zero exit code. With an output
+/// folder, a crash of the process (a plugin's segfault) leaves summary.json saying so
+/// (CrashSummary).
 RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings& settings);
 
 }  // namespace pinsim

@@ -1,5 +1,6 @@
 // Output files: complete, valid and kept when a run ends early (NaN, interrupt).
 #include <catch2/catch.hpp>
+#include <csignal>
 #include <fstream>
 #include <sstream>
 
@@ -192,7 +193,7 @@ TEST_CASE("implicit Euler: a failed linear solve stops the run as a solver failu
 
 TEST_CASE("interrupted run: stops cleanly with valid files") {
   const auto dir = test::temp_dir("interrupt");
-  std::atomic<bool> stop{true};
+  std::atomic<int> stop{SIGINT};
   const Scene s = parse_scene(R"({"time": {"dt": 0.1, "duration": 10},
     "particles": [{"x": [0, 0]}]})",
                               "i.json", ".");
@@ -204,6 +205,7 @@ TEST_CASE("interrupted run: stops cleanly with valid files") {
   CHECK(r.exit_code == 130);
   const auto summary = nlohmann::json::parse(test::read_file(dir / "summary.json"));
   CHECK(summary["status"] == "interrupted");
+  CHECK(summary["signal"] == nlohmann::json{{"name", "SIGINT"}, {"number", 2}});
   CHECK(summary["steps"] == 0);
   CHECK(lines(dir / "trajectory.csv").size() == 2);  // header + the initial state
 }

@@ -1,0 +1,33 @@
+// SIGINT, SIGTERM, SIGHUP and SIGQUIT ask a long command (run, bench, stress, crosscheck,
+// grade) to stop cleanly: it finishes its current step, point or test, writes what is done
+// and exits with 128 + the signal's number. A second signal of the same kind ends the
+// process at once (the signal's default action).
+#pragma once
+
+#include <atomic>
+#include <string>
+
+namespace pinsim {
+
+/// Installs the handlers for the four stop signals; SIGHUP stays ignored if it is ignored
+/// when this is called (nohup). Safe to call more than once.
+void install_stop_handlers();
+
+/// The first stop signal received since the handlers were installed, or 0. The run loop
+/// polls it (RunSettings::stop).
+const std::atomic<int>& stop_signal();
+
+/// Records `sig` as if it had arrived (tests, and code that stops for its own reasons).
+void request_stop(int sig) noexcept;
+
+/// "SIGINT", "SIGSEGV", ...; "signal N" for one without a name here. Async-signal-safe (a
+/// static string; "signal" for unknown ones).
+const char* signal_abbrev(int sig) noexcept;
+
+/// signal_abbrev, with the number for unknown signals.
+std::string signal_name(int sig);
+
+/// 128 + sig: the exit status of a command that stopped because of `sig`.
+inline int stop_exit_code(int sig) { return 128 + sig; }
+
+}  // namespace pinsim
