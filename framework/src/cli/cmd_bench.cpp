@@ -6,6 +6,7 @@
 
 #include "cli_slurm.hpp"
 #include "commands.hpp"
+#include "core/stop_signals.hpp"
 #include "tools/bench.hpp"
 
 namespace pinsim::cli {
@@ -39,10 +40,12 @@ void add_bench_command(CLI::App& app) {
   c->add_option("--repeats", a->repeats, "Timed repeats per point (default: the config's, or 3)");
   add_slurm_options(c, a->slurm);
   c->callback([a, c] {
-    check_slurm_options(c, a->slurm, c->count("--shard") > 0);
+    check_slurm_options(c, a->slurm, c->count("--shard") > 0, true);
     if (a->slurm.slurm) throw CLI::RuntimeError(bench_on_slurm(*a));
     bench::Options o;
     o.config = a->config;
+    o.resume = a->slurm.request.resume;
+    install_stop_handlers();
     o.out = a->out;
     o.shard = sweep::parse_shard(a->shard);
     o.repeats = a->repeats;

@@ -1,6 +1,7 @@
 // pinsim grade --rubric R --submission PATH [--out DIR] [--batch [--jobs J] [--shard i/N]]
 // [--batch --slurm [--shards N] ...] and the hidden child `pinsim grade-worker` that runs
 // one test.
+#include <signal.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -8,10 +9,12 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <set>
 
 #include "cli_slurm.hpp"
 #include "commands.hpp"
 #include "core/input_error.hpp"
+#include "core/stop_signals.hpp"
 #include "grading/grader.hpp"
 #include "grading/results.hpp"
 #include "grading/sandbox.hpp"
@@ -57,6 +60,7 @@ int grade_one(const GradeArgs& a) {
   opt.sdk_prefix = !a.sdk_prefix.empty()                ? fs::path(a.sdk_prefix)
                    : fs::exists(prefix / "sdk-package") ? prefix / "sdk-package"
                                                         : prefix;
+  install_stop_handlers();
   const GradeReport r = grade_submission(rubric, opt);
   std::cout << r.results["output"].get<std::string>();
   if (!std::string(r.results["output"].get<std::string>()).empty() &&
@@ -64,6 +68,11 @@ int grade_one(const GradeArgs& a) {
     std::cout << "\n";
   std::cout.flush();
   spdlog::info("results written to {}", (fs::path(a.out) / "results.json").string());
+  if (r.stopped_by != 0) {
+    spdlog::warn("grading stopped by {} after {} test(s); grade again for a score",
+                 signal_name(r.stopped_by), r.results["tests"].size());
+    return stop_exit_code(r.stopped_by);
+  }
   return r.refused ? 2 : 0;
 }
 
@@ -79,8 +88,21 @@ int grade_batch(const GradeArgs& a) {
   for (std::size_t i = 0; i < subs.size(); ++i)
     if (shard.owns(i)) mine.push_back(subs[i]);
   const int jobs = a.jobs > 0 ? a.jobs : std::max(1L, ::sysconf(_SC_NPROCESSORS_ONLN));
+  install_stop_handlers();
   std::size_t next = 0, running = 0;
+  std::set<pid_t> children;
+  int forwarded = 0;
+  std::size_t started = mine.size();
   while (next < mine.size() || running > 0) {
+    // A stop signal: start no more, pass it on to the running ones (each writes its
+    // results.json saying so) and wait for them.
+    if (const int sig = stop_signal().load(); sig != 0 && forwarded == 0) {
+      forwarded = sig;
+      for (pid_t pid : children) ::kill(pid, sig);
+      started = next;
+      next = mine.size();
+      if (running == 0) break;
+    }
     while (next < mine.size() && static_cast<int>(running) < jobs) {
       const fs::path s = mine[next++];
       const std::string out = (fs::path(a.out) / s.filename()).string();
@@ -89,11 +111,20 @@ int grade_batch(const GradeArgs& a) {
                                        s.string(),          "--out",  out};
       if (!a.sdk_prefix.empty()) argv.insert(argv.end(), {"--sdk-prefix", a.sdk_prefix});
       if (a.unsafe) argv.push_back("--unsafe-no-sandbox");
-      start_child(argv, ChildOutput::Discard);
+      children.insert(start_child(argv, ChildOutput::Discard).pid);
       ++running;
     }
-    if (wait_any_child() < 0) break;  // no child left: none can still be running
+    const pid_t done = wait_any_child();
+    if (done < 0) break;  // no child left: none can still be running
+    children.erase(done);
     --running;
+  }
+  if (const int sig = stop_signal().load(); sig != 0) {
+    spdlog::warn(
+        "grading stopped by {}: {} of this shard's {} submission(s) started, each with its "
+        "results.json in {}; no batch CSV written; grade the batch again for it",
+        signal_name(sig), started, mine.size(), a.out);
+    return stop_exit_code(sig);
   }
   // The CSV is written atomically; a shard's gets a manifest (what the whole batch is) so
   // that `pinsim merge` can refuse shards of different batches or a missing one.

@@ -4,6 +4,7 @@
 
 #include "cli_slurm.hpp"
 #include "commands.hpp"
+#include "core/stop_signals.hpp"
 #include "tools/stress.hpp"
 
 namespace pinsim::cli {
@@ -33,10 +34,12 @@ void add_stress_command(CLI::App& app) {
   c->add_option("--shard", a->shard, "Run only every N-th point: i/N, 0 <= i < N (default 0/1)");
   add_slurm_options(c, a->slurm);
   c->callback([a, c] {
-    check_slurm_options(c, a->slurm, c->count("--shard") > 0);
+    check_slurm_options(c, a->slurm, c->count("--shard") > 0, true);
     if (a->slurm.slurm) throw CLI::RuntimeError(stress_on_slurm(*a));
     stress::Options o;
     o.config = a->config;
+    o.resume = a->slurm.request.resume;
+    install_stop_handlers();
     o.out = a->out;
     o.shard = sweep::parse_shard(a->shard);
     throw CLI::RuntimeError(stress::run(o));

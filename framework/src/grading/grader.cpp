@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "core/format.hpp"
+#include "core/stop_signals.hpp"
 #include "grading/remote_plugin.hpp"
 #include "grading/results.hpp"
 #include "grading/submission.hpp"
@@ -46,6 +47,7 @@ class Grading {
     grading::prepare_submission(opt_.submission, opt_.sdk_prefix, rubric_, prep);
     tests_ = nlohmann::json::array();
     for (std::size_t i = 0; i < rubric_.tests.size(); ++i) {
+      if ((stopped_by_ = stop_signal().load()) != 0) break;
       const RubricTest& t = rubric_.tests[i];
       const double t0 = now();
       grading::Verdict v = run_test(t, i, prep);
@@ -55,8 +57,11 @@ class Grading {
     }
     for (auto& [name, w] : workers_)
       if (w.worker) w.worker->finish();
-    return results(false);
+    return results(stopped_by_ != 0);
   }
+
+  /// The stop signal that ended grading before the last test, or 0.
+  int stopped_by() const { return stopped_by_; }
 
  private:
   grading::Verdict run_test(const RubricTest& t, std::size_t index,
@@ -166,8 +171,10 @@ class Grading {
                         {"execution_time", now() - start_},
                         {"visibility", "visible"},
                         {"tests", tests_}};
+    const std::string how =
+        stopped_by_ != 0 ? "was interrupted (" + signal_name(stopped_by_) + ")" : "stopped";
     r["output"] = interim
-                      ? "Grading did not finish: the grader stopped after test " +
+                      ? "Grading did not finish: the grader " + how + " after test " +
                             std::to_string(tests_.size()) + " of " +
                             std::to_string(rubric_.tests.size()) + ". Please tell the course staff."
                       : grading::summary_text(r, rubric_.name);
@@ -185,6 +192,7 @@ class Grading {
   std::map<std::string, PluginWorker> workers_;
   std::string printed_, printed_open_;
   std::size_t printed_bytes_ = 0;
+  int stopped_by_ = 0;
 };
 
 }  // namespace
@@ -209,6 +217,7 @@ GradeReport grade_submission(const Rubric& rubric, const GradeOptions& opt) {
     } else {
       Grading g(rubric, opt);
       report.results = g.run();
+      report.stopped_by = g.stopped_by();
     }
   } catch (const std::exception& e) {
     report.refused = true;

@@ -25,6 +25,9 @@ struct GradeReport {
   /// The grader could not grade (no sandbox here, an internal error): results.json says why
   /// with score 0, and `pinsim grade` exits 2.
   bool refused = false;
+  /// A stop signal (SIGINT, SIGTERM, SIGHUP, SIGQUIT) ended grading after the current test:
+  /// results.json lists the tests done, score 0, and says so. `pinsim grade` exits 128 + it.
+  int stopped_by = 0;
 };
 
 /// Grades one submission. Never throws and never fails because of what the submission does;

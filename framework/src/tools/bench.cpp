@@ -11,10 +11,12 @@
 #include <limits>
 #include <map>
 #include <optional>
+#include <sstream>
 
 #include "core/format.hpp"
 #include "core/json_read.hpp"
 #include "core/simulation.hpp"
+#include "core/stop_signals.hpp"
 #include "tools/bench_answer.hpp"
 
 namespace fs = std::filesystem;
@@ -266,7 +268,7 @@ int run(const Options& o) {
             r.status};
   };
   sw.report = report;
-  sweep::drive(sw, o.shard, o.out, where);
+  if (const int sig = sweep::drive(sw, o.shard, o.out, where, o.resume)) return stop_exit_code(sig);
   return code;
 }
 
@@ -300,7 +302,7 @@ void report(const sweep::Table& t, const fs::path& out) {
     }
     // Work-precision figure: error on x, median time on y, log-log.
     const fs::path script = out / ("work_precision_" + cname + ".gp");
-    std::ofstream gp(script);
+    std::ostringstream gp;
     gp << "set terminal svg size 900,600 dynamic\nset output 'work_precision_" << cname
        << ".svg'\nset logscale xy\nset format x '10^{%L}'\nset format y '10^{%L}'\n"
        << "set xlabel 'largest position error over the trajectory'\n"
@@ -309,17 +311,18 @@ void report(const sweep::Table& t, const fs::path& out) {
     int k = 0;
     for (auto& [sname, pts] : ss) {
       std::string file = "wp_" + cname + "_" + std::to_string(k) + ".dat";
-      std::ofstream dat(out / file);
+      std::ostringstream dat;
       dat << "# " << sname << ": error_max time_median_s dt\n";
       for (const auto& p : pts)
         if (p[2] > 0.0 && std::isfinite(p[2]) && p[3] > 0.0)
           dat << num(p[2]) << ' ' << num(p[3]) << ' ' << num(p[0]) << '\n';
+      sweep::write_atomically(out / file, dat.str());
       gp << (k ? ", \\\n     " : "") << "'" << file << "' using 1:2 with linespoints title '"
          << sname << "' noenhanced";  // names hold '_', not subscripts
       ++k;
     }
     gp << "\n";
-    gp.close();
+    sweep::write_atomically(script, gp.str());
     if (sweep::run_gnuplot(script))
       spdlog::info("figure: {}", (out / ("work_precision_" + cname + ".svg")).string());
   }

@@ -13,6 +13,7 @@ struct Options {
   std::filesystem::path config;
   std::filesystem::path out = "out/bench";
   sweep::Shard shard;
+  bool resume = false;      ///< continue an interrupted run from its partial CSV (sweep::drive)
   bool check_only = false;  ///< read and check the config, run and write nothing
   int repeats = -1;         ///< overrides the config's "repeats" when >= 0
 };

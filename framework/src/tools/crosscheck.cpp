@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "core/json_read.hpp"
+#include "core/stop_signals.hpp"
 
 namespace pinsim {
 namespace {
@@ -100,6 +101,7 @@ CrosscheckRun run_for_crosscheck(const Scene& scene_in, PluginLoader& loader,
   const auto start = std::chrono::steady_clock::now();
   try {
     for (uint64_t n = 0; n < steps; ++n) {
+      if ((run.stopped_by = stop_signal().load()) != 0) break;
       sim.step();
       run.events.insert(run.events.end(), sim.events().begin(), sim.events().end());
       sample();
@@ -108,6 +110,7 @@ CrosscheckRun run_for_crosscheck(const Scene& scene_in, PluginLoader& loader,
     run.error = fmt::format("step {} (t = {}): {}", sim.step_index() + 1, sim.state().t, e.what());
   }
   run.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  run.steps = sim.step_index();
   return run;
 }
 

@@ -44,10 +44,13 @@ struct CrosscheckRun {
   std::vector<pinsim_event> events;  ///< all contact events
   std::string error;                 ///< non-empty if the run stopped early
   double wall_time = 0.0;            ///< s
+  int stopped_by = 0;                ///< a stop signal ended the run after `steps` steps
+  uint64_t steps = 0;                ///< steps done
 };
 
 /// Runs the scene on `backend` (params from spec.params, else the scene's if it names
-/// that backend, else defaults). Scene and plugin creation errors throw.
+/// that backend, else defaults). Scene and plugin creation errors throw. A stop signal
+/// (stop_signals.hpp) ends the run after the current step (`stopped_by`).
 CrosscheckRun run_for_crosscheck(const Scene& scene, PluginLoader& loader,
                                  const std::string& backend, const CrosscheckSpec& spec);
 

@@ -12,10 +12,12 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <sstream>
 
 #include "core/format.hpp"
 #include "core/json_read.hpp"
 #include "core/simulation.hpp"
+#include "core/stop_signals.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -285,7 +287,7 @@ int run(const Options& o) {
             num(r.wall)};
   };
   sw.report = report;
-  sweep::drive(sw, o.shard, o.out, where);
+  if (const int sig = sweep::drive(sw, o.shard, o.out, where, o.resume)) return stop_exit_code(sig);
   return 0;
 }
 
@@ -347,15 +349,15 @@ void report(const sweep::Table& t, const fs::path& out) {
       maps[r[cc] + "_" + r[cb] + "_" + r[ci]].push_back(&r);
   for (const auto& [name, rows] : maps) {
     const bool stiff = (*rows.front())[ck] == "stiffness";
-    std::ofstream dat(out / ("heat_" + name + ".dat"));
+    std::ostringstream dat;
     dat << "# x y class_code (0 stable, 1 penetration, 2 tunnelled, 3 energy blow-up, 4 NaN, "
            "5 error)\n";
     for (const auto* r : rows)
       dat << (stiff ? (*r)[cd] : (*r)[csp]) << ' ' << (stiff ? (*r)[cs] : (*r)[cth]) << ' '
           << class_code((*r)[cl]) << '\n';
-    dat.close();
+    sweep::write_atomically(out / ("heat_" + name + ".dat"), dat.str());
     const fs::path script = out / ("heat_" + name + ".gp");
-    std::ofstream gp(script);
+    std::ostringstream gp;
     gp << "set terminal svg size 800,600 dynamic\nset output 'heat_" << name << ".svg'\n"
        << "set logscale xy\nset xlabel '" << (stiff ? "dt (s)" : "ball speed (units/s)")
        << "'\nset ylabel '" << (stiff ? "stiffness" : "wall thickness") << "'\nset title '" << name
@@ -366,7 +368,7 @@ void report(const sweep::Table& t, const fs::path& out) {
        << "set cbtics ('stable' 0, 'penetration' 1, 'tunnelled' 2, 'unstable' 3, 'NaN' 4, "
           "'error' 5)\n"
        << "plot 'heat_" << name << ".dat' using 1:2:3 with points pt 5 ps 3 palette notitle\n";
-    gp.close();
+    sweep::write_atomically(script, gp.str());
     if (sweep::run_gnuplot(script))
       spdlog::info("figure: {}", (out / ("heat_" + name + ".svg")).string());
   }

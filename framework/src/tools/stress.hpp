@@ -15,6 +15,7 @@ struct Options {
   std::filesystem::path config;
   std::filesystem::path out = "out/stress";
   sweep::Shard shard;
+  bool resume = false;      ///< continue an interrupted run from its partial CSV (sweep::drive)
   bool check_only = false;  ///< read and check the config, run and write nothing
 };
 

@@ -4,6 +4,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -14,6 +15,8 @@
 #include <sstream>
 
 #include "core/input_error.hpp"
+#include "core/output_file.hpp"
+#include "core/stop_signals.hpp"
 
 namespace fs = std::filesystem;
 
@@ -75,27 +78,13 @@ std::string Table::text() const {
 void Table::write(const fs::path& file) const { write_atomically(file, text()); }
 
 void write_atomically(const fs::path& file, const std::string& bytes) {
-  if (file.has_parent_path()) fs::create_directories(file.parent_path());
-  // Unique per process, in the same folder (rename is atomic only within a file system).
-  fs::path tmp = file;
-  tmp += ".tmp." + std::to_string(::getpid());
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out << bytes;
-    out.flush();
-    if (!out) {
-      std::error_code ec;
-      fs::remove(tmp, ec);
-      throw std::runtime_error(file.string() + ": cannot be written");
-    }
+  if (file.has_parent_path()) {
+    std::error_code ec;
+    fs::create_directories(file.parent_path(), ec);
+    if (ec)
+      throw OutputError(file.parent_path().string() + ": cannot create (" + ec.message() + ")");
   }
-  std::error_code ec;
-  fs::rename(tmp, file, ec);
-  if (ec) {
-    fs::remove(tmp, ec);
-    throw std::runtime_error(file.string() + ": cannot be written (rename failed: " + ec.message() +
-                             ")");
-  }
+  write_file_atomically(file, bytes);
 }
 
 std::string fingerprint(std::string_view bytes) {
@@ -343,32 +332,100 @@ fs::path csv_path(const fs::path& out, const std::string& tool, const Shard& sha
   return out / (tool + shard.suffix() + ".csv");
 }
 
-void drive(const Sweep& s, const Shard& shard, const fs::path& out, const std::string& where) {
+fs::path partial_path(const fs::path& out, const std::string& tool, const Shard& shard) {
+  return out / (tool + ".partial" + shard.suffix() + ".csv");
+}
+
+namespace {
+
+/// The rows of an interrupted run of this shard, by point, from its partial CSV; empty when
+/// there is none. Throws InputError if it belongs to another sweep or shard.
+std::map<std::size_t, std::vector<std::string>> finished_points(const fs::path& partial,
+                                                                const Manifest& want) {
+  std::map<std::size_t, std::vector<std::string>> rows;
+  std::error_code ec;
+  if (!fs::exists(partial, ec)) return rows;
+  const auto m = read_manifest(partial);
+  if (!m)
+    throw InputError(partial.string() + ": no manifest " +
+                     manifest_path(partial).filename().string() +
+                     " beside it; remove it, or run without --resume");
+  if (m->tool != want.tool || m->sweep != want.sweep || m->shard.index != want.shard.index ||
+      m->shard.count != want.shard.count || m->points != want.points)
+    throw InputError(partial.string() +
+                     ": from a different sweep (another config, options or shard); remove it, "
+                     "or run without --resume");
+  const Table t = Table::read(partial);
+  for (const auto& r : t.rows)
+    if (!r.empty()) rows[std::strtoull(r[0].c_str(), nullptr, 10)] = r;
+  return rows;
+}
+
+}  // namespace
+
+int drive(const Sweep& s, const Shard& shard, const fs::path& out, const std::string& where,
+          bool resume) {
   std::size_t mine = 0;
   for (std::size_t i = 0; i < s.points; ++i) mine += shard.owns(i);
+  Manifest m;
+  m.tool = s.tool;
+  m.sweep = fingerprint(s.inputs);
+  m.shard = shard;
+  m.points = s.points;
+  const fs::path partial = partial_path(out, s.tool, shard);
+  std::map<std::size_t, std::vector<std::string>> done;
+  if (resume) {
+    done = finished_points(partial, m);
+    spdlog::info("{}: resuming: {} of this shard's {} points already done ({})", where, done.size(),
+                 mine, partial.string());
+  } else if (std::error_code ec; fs::exists(partial, ec)) {
+    spdlog::info("{}: replacing {} of an interrupted sweep (pass --resume to continue it)", where,
+                 partial.string());
+  }
   spdlog::info("{}: {} points, this shard ({}/{}) runs {}", where, s.points, shard.index,
-               shard.count, mine);
+               shard.count, mine - std::min(mine, done.size()));
   Table t;
   t.header = s.columns;
-  for (std::size_t i = 0; i < s.points; ++i)
-    if (shard.owns(i)) t.rows.push_back(s.run_point(i));
-  const fs::path csv = csv_path(out, s.tool, shard);
-  if (shard.count == 1) {
-    t.write(csv);
-  } else {
-    Manifest m;
-    m.tool = s.tool;
-    m.sweep = fingerprint(s.inputs);
-    m.shard = shard;
-    m.points = s.points;
-    write_shard(t, csv, m);
+  const std::atomic<int>& stop = stop_signal();
+  int sig = 0;
+  for (std::size_t i = 0; i < s.points; ++i) {
+    if (!shard.owns(i)) continue;
+    if (const auto it = done.find(i); it != done.end()) {
+      t.rows.push_back(it->second);
+      continue;
+    }
+    if ((sig = stop.load()) != 0) break;
+    t.rows.push_back(s.run_point(i));
+    // Every finished point on disk at once, so an interrupted sweep loses none.
+    write_shard(t, partial, m);
   }
+  if (sig == 0) sig = stop.load();
+  if (sig != 0 && t.rows.size() < mine) {
+    write_shard(t, partial, m);
+    std::string again = "pinsim " + s.tool + " " + where + " --out " + out.string();
+    if (shard.count > 1)
+      again += " --shard " + std::to_string(shard.index) + "/" + std::to_string(shard.count);
+    spdlog::warn(
+        "{}: stopped by {} after {} of this shard's {} points; the finished points are in {} "
+        "(with its manifest); continue with: {} --resume",
+        where, signal_name(sig), t.rows.size(), mine, partial.string(), again);
+    return sig;
+  }
+  const fs::path csv = csv_path(out, s.tool, shard);
+  if (shard.count == 1)
+    t.write(csv);
+  else
+    write_shard(t, csv, m);
+  std::error_code ec;
+  fs::remove(partial, ec);
+  fs::remove(manifest_path(partial), ec);
   spdlog::info("wrote {}", csv.string());
   if (shard.count == 1)
     s.report(t, out);
   else
     spdlog::info("shard done; after all shards: pinsim merge --out {} {}/{}.shard-*.csv",
                  out.string(), out.string(), s.tool);
+  return 0;
 }
 
 }  // namespace pinsim::sweep

@@ -45,8 +45,8 @@ struct Table {
 };
 
 /// Writes `bytes` to a temporary file beside `file`, then renames it over `file`, so the
-/// file is either the old one or the whole new one. Creates the folder. Throws
-/// std::runtime_error if it cannot be written.
+/// file is either the old one or the whole new one; every write, the close and the rename
+/// checked. Creates the folder. Throws OutputError naming the file and the reason.
 void write_atomically(const std::filesystem::path& file, const std::string& bytes);
 
 /// 64-bit FNV-1a of `bytes` as 16 hex digits: identifies a sweep's inputs or a file's bytes.
@@ -144,9 +144,21 @@ struct Sweep {
 std::filesystem::path csv_path(const std::filesystem::path& out, const std::string& tool,
                                const Shard& shard);
 
-/// Runs the points `shard` owns, in order; writes their CSV (a shard of many with its
-/// manifest); then, for a whole sweep, the report. `where` (the config) names the log lines.
-void drive(const Sweep& s, const Shard& shard, const std::filesystem::path& out,
-           const std::string& where);
+/// Where a shard's finished points are kept while it runs (with a manifest):
+/// OUT/TOOL.partial.csv for 0/1, else OUT/TOOL.partial.shard-i-of-N.csv (outside the
+/// OUT/TOOL.shard-*.csv pattern that `merge` is given).
+std::filesystem::path partial_path(const std::filesystem::path& out, const std::string& tool,
+                                   const Shard& shard);
+
+/// Runs the points `shard` owns, in order, keeping the finished ones in partial_path after
+/// every point; then writes their CSV (a shard of many with its manifest), removes the
+/// partial file and, for a whole sweep, prints the report. With `resume`, the points in the
+/// partial file of an earlier, interrupted run of the same sweep and shard are taken from it
+/// (InputError if it belongs to another sweep). A stop signal (stop_signals.hpp) ends the
+/// sweep after the current point: the partial file then holds every finished point, the log
+/// says how to continue, and drive returns the signal (0 when the sweep finished). `where`
+/// (the config) names the log lines.
+int drive(const Sweep& s, const Shard& shard, const std::filesystem::path& out,
+          const std::string& where, bool resume = false);
 
 }  // namespace pinsim::sweep
