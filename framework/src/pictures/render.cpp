@@ -7,8 +7,10 @@
 #include <cmath>
 #include <memory>
 #include <stdexcept>
+#include <string>
 
 #include "core/input_error.hpp"
+#include "core/output_file.hpp"
 #include "core/simulation.hpp"
 #include "pictures/cairo_handles.hpp"
 #include "pictures/render_field.hpp"
@@ -97,11 +99,18 @@ double picture_time(const RenderJob& job, const RenderOptions& opt) {
   return t;
 }
 
-// An SVG surface writing to `out`, or an image surface for a PNG written at the end.
-Surface create_surface(const fs::path& out, bool svg, const PixelMap& map) {
+// Collects what cairo writes (cairo_write_func_t).
+cairo_status_t append_bytes(void* closure, const unsigned char* data, unsigned int length) {
+  static_cast<std::string*>(closure)->append(reinterpret_cast<const char*>(data), length);
+  return CAIRO_STATUS_SUCCESS;
+}
+
+// An SVG surface writing into `bytes`, or an image surface for a PNG made at the end.
+Surface create_surface(const fs::path& out, bool svg, const PixelMap& map, std::string& bytes) {
   fs::create_directories(fs::absolute(out).parent_path());
-  Surface surface(svg ? cairo_svg_surface_create(out.c_str(), map.width, map.height)
-                      : cairo_image_surface_create(CAIRO_FORMAT_ARGB32, map.width, map.height));
+  Surface surface(
+      svg ? cairo_svg_surface_create_for_stream(append_bytes, &bytes, map.width, map.height)
+          : cairo_image_surface_create(CAIRO_FORMAT_ARGB32, map.width, map.height));
   if (cairo_surface_status(surface.get()) != CAIRO_STATUS_SUCCESS)
     throw std::runtime_error(out.string() + ": cannot create the picture: " +
                              cairo_status_to_string(cairo_surface_status(surface.get())));
@@ -248,18 +257,20 @@ void draw_title_and_legend(cairo_t* cr, const RenderJob& job, const RenderOption
   }
 }
 
-// Writes the PNG, or finishes the SVG the surface has been writing.
-void write_picture(cairo_surface_t* surface, const fs::path& out, bool svg) {
+// Encodes the PNG, or finishes the SVG the surface has been writing into `bytes`; then
+// writes `out` atomically (OutputError naming it), so no half picture is ever left.
+void write_picture(cairo_surface_t* surface, const fs::path& out, bool svg, std::string& bytes) {
   if (!svg) {
-    const cairo_status_t st = cairo_surface_write_to_png(surface, out.c_str());
+    const cairo_status_t st = cairo_surface_write_to_png_stream(surface, append_bytes, &bytes);
     if (st != CAIRO_STATUS_SUCCESS)
-      throw std::runtime_error(out.string() + ": cannot write: " + cairo_status_to_string(st));
+      throw std::runtime_error(out.string() + ": cannot encode: " + cairo_status_to_string(st));
   } else {
     cairo_surface_finish(surface);
     if (cairo_surface_status(surface) != CAIRO_STATUS_SUCCESS)
-      throw std::runtime_error(out.string() + ": cannot write: " +
+      throw std::runtime_error(out.string() + ": cannot encode: " +
                                cairo_status_to_string(cairo_surface_status(surface)));
   }
+  write_file_atomically(out, bytes);
 }
 
 }  // namespace
@@ -278,7 +289,8 @@ PixelMap render_picture(const RenderJob& job, PluginLoader& loader, const Render
   const double t = picture_time(job, opt);
   const ParticleLayout particles(job, map, t);
   // The layers from the bottom up, on a light background.
-  Surface surface = create_surface(out, svg, map);
+  std::string bytes;  // the file's bytes: the SVG surface writes here as it draws
+  Surface surface = create_surface(out, svg, map, bytes);
   CairoContext ctx = cairo_context(surface.get());
   cairo_t* cr = ctx.get();
   cairo_set_source_rgb(cr, 0.97, 0.95, 0.90);
@@ -290,7 +302,7 @@ PixelMap render_picture(const RenderJob& job, PluginLoader& loader, const Render
   draw_particles(cr, particles);
   draw_title_and_legend(cr, job, opt, map, t);
   ctx.reset();
-  write_picture(surface.get(), out, svg);
+  write_picture(surface.get(), out, svg, bytes);
   return map;
 }
 

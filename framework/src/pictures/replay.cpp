@@ -4,9 +4,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <stdexcept>
 
+#include "core/output_file.hpp"
 #include "core/simulation.hpp"
 #include "pictures/render.hpp"
 #include "pictures/render_field.hpp"
@@ -150,9 +150,7 @@ PixelMap write_replay(const RunData& run, const Scene* scene, PluginLoader& load
   if (tat != std::string::npos) html.replace(tat, 12, title);
 
   fs::create_directories(fs::absolute(out).parent_path());
-  std::ofstream f(out, std::ios::binary);
-  f << html;
-  if (!f) throw std::runtime_error(out.string() + ": cannot write");
+  write_file_atomically(out, html);
   return map;
 }
 

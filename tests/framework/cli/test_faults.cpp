@@ -167,3 +167,27 @@ TEST_CASE("faults: --overwrite removes the earlier run's files, keeps the user's
     CHECK(fs::exists(dir / f));
   CHECK(nlohmann::json::parse(test::read_file(dir / "summary.json"))["status"] == "ok");
 }
+
+TEST_CASE("faults: render and replay write their file whole or say why, exit 1") {
+  const fs::path dir = test::temp_dir("pictures");
+  REQUIRE(test::pinsim_cli("-q run " PINSIM_SOURCE_DIR "/configs/projectile.json --out " +
+                           (dir / "run").string())
+              .code == 0);
+  // A folder where the file should go: the rename at the end fails, nothing half is left.
+  for (const char* f : {"p.png", "p.svg", "r.html"}) fs::create_directories(dir / f);
+  for (const std::string f : {"p.png", "p.svg"}) {
+    const auto r =
+        test::pinsim_cli("-q render " + (dir / "run").string() + " --out " + (dir / f).string());
+    CHECK(r.code == 1);
+    CHECK_THAT(r.output, Contains((dir / f).string() + ": cannot write (Is a directory)"));
+  }
+  const auto r = test::pinsim_cli("-q replay " + (dir / "run").string() + " --out " +
+                                  (dir / "r.html").string());
+  CHECK(r.code == 1);
+  CHECK_THAT(r.output, Contains((dir / "r.html").string() + ": cannot write (Is a directory)"));
+  for (const auto& e : fs::directory_iterator(dir))
+    CHECK_THAT(e.path().filename().string(), !Contains(".tmp."));
+  // And written whole when they can be.
+  CHECK(test::pinsim_cli("-q render " + (dir / "run").string()).code == 0);
+  CHECK(test::read_file(dir / "run" / "picture.png").rfind("\x89PNG", 0) == 0);
+}
