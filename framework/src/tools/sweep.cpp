@@ -15,6 +15,7 @@
 #include <sstream>
 
 #include "core/input_error.hpp"
+#include "core/json_read.hpp"
 #include "core/output_file.hpp"
 #include "core/stop_signals.hpp"
 
@@ -220,17 +221,29 @@ Table merge(const std::vector<fs::path>& files) {
   return all;
 }
 
+namespace {
+
+/// The whole text of a regular file (not a folder, a device or a pipe, which could be
+/// endless); throws InputError naming `what` otherwise.
+std::string read_config_text(const fs::path& file, const std::string& what) {
+  std::error_code ec;
+  if (!fs::is_regular_file(file, ec)) throw InputError(what + " not found or not a regular file");
+  std::ifstream in(file, std::ios::binary);
+  if (!in) throw InputError(what + " cannot be read");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+}  // namespace
+
 Config load_config(const fs::path& file) {
-  std::ifstream in(file);
-  if (!in) throw InputError(file.string() + ": sweep config not found or unreadable");
   Config c;
   c.file = file;
   c.dir = fs::absolute(file).parent_path();
-  try {
-    c.doc = nlohmann::json::parse(in, nullptr, true, /*ignore_comments=*/true);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(file.string() + ": not valid JSON: " + e.what());
-  }
+  // Strict JSON (nesting and size limited while parsing, duplicate keys and out-of-range
+  // numbers refused with their place): a config's scene is copied and dumped recursively.
+  c.doc = parse_json_text(read_config_text(file, file.string() + ": sweep config"), file.string());
   if (!c.doc.is_object()) throw InputError(file.string() + ": expected a JSON object");
   return c;
 }
@@ -243,14 +256,9 @@ nlohmann::json scene_doc(const Config& cfg, const nlohmann::json& spec, fs::path
   if (!spec.is_string())
     throw InputError(cfg.file.string() + ": \"scene\" must be a file name or a scene object");
   const fs::path p = cfg.dir / spec.get<std::string>();
-  std::ifstream in(p);
-  if (!in) throw InputError(cfg.file.string() + ": scene " + p.string() + " not found");
+  const std::string text = read_config_text(p, cfg.file.string() + ": scene " + p.string());
   base_dir = fs::absolute(p).parent_path();
-  try {
-    return nlohmann::json::parse(in, nullptr, true, true);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(p.string() + ": not valid JSON: " + e.what());
-  }
+  return parse_json_text(text, p.string());
 }
 
 Scene make_scene(nlohmann::json doc, const std::vector<std::pair<std::string, nlohmann::json>>& set,
