@@ -1,5 +1,6 @@
 #include "core/scene.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -12,6 +13,15 @@ namespace fs = std::filesystem;
 
 namespace pinsim {
 namespace {
+
+/// Nesting depth of a JSON value: 0 for a scalar, 1 + the deepest element's for an array or
+/// object. Called on values from parse_json_text, so the recursion is bounded by its limit.
+std::size_t nesting_depth(const nlohmann::json& v) {
+  if (!v.is_structured()) return 0;
+  std::size_t d = 0;
+  for (const auto& e : v) d = std::max(d, nesting_depth(e));
+  return d + 1;
+}
 
 // Splits "forces[0].params.k" or "forces.0.params.k" into keys and indices.
 std::vector<std::string> split_path(const std::string& path) {
@@ -210,6 +220,13 @@ void apply_override(nlohmann::json& doc, const std::string& assignment, const st
   }
   const auto keys = split_path(path);
   if (keys.empty()) throw InputError("--set " + assignment + ": empty path");
+  // Each key is a level: the document stays within the parser's nesting limit, so nothing
+  // recursive (a copy, a dump) meets a deeper one.
+  const std::size_t max_depth = JsonLimits{}.max_depth;
+  if (keys.size() + nesting_depth(value) > max_depth)
+    throw InputError(label + ": --set " + path.substr(0, 80) + (path.size() > 80 ? "..." : "") +
+                     ": nests " + std::to_string(keys.size() + nesting_depth(value)) +
+                     " levels deep, more than the limit of " + std::to_string(max_depth));
   nlohmann::json* cur = &doc;
   std::string walked;
   for (std::size_t k = 0; k < keys.size(); ++k) {

@@ -224,3 +224,21 @@ TEST_CASE("input errors: a scene's errors are SceneError, other files' InputErro
   REQUIRE_THROWS_AS(build({}, "{\"time\": 1}"), SceneError);
   REQUIRE_THROWS_AS(build({"time.dt"}), InputError);  // a malformed --set
 }
+
+TEST_CASE("scene errors: a grid blob of more particles than a body may have") {
+  // 1e6 x 1e6 would be 1e12 particles (and wrap a 32-bit count): refused before any is made
+  REQUIRE_THROWS_WITH(build({"bodies=[{\"type\": \"grid_blob\", \"nx\": 1000000, \"ny\": 2}]"}),
+                      Contains("bad.json: bodies[0].ny: nx * ny = 2000000 particles, more than "
+                               "the 1000000 a body may have"));
+}
+
+TEST_CASE("scene errors: --set cannot nest deeper than the parser's limit") {
+  // 60000 keys once overflowed the stack in the recursive copy of the document
+  std::string path = "contacts";
+  for (int i = 0; i < 60000; ++i) path += ".a";
+  REQUIRE_THROWS_WITH(build({path + "=1"}),
+                      Contains("bad.json: --set contacts.a.a.") &&
+                          Contains("...: nests 60001 levels deep, more than the limit of 256"));
+  REQUIRE_THROWS_WITH(build({"contacts.a=" + std::string(255, '[') + std::string(255, ']')}),
+                      Contains("nests 257 levels deep, more than the limit of 256"));
+}
