@@ -27,6 +27,38 @@ namespace pinsim::grading {
 namespace {
 
 bool g_unsafe = false;
+
+// AddressSanitizer (the asan preset) reserves terabytes of address space for its shadow
+// memory when a program starts, so an address-space limit (RLIMIT_AS) would stop every
+// sanitized program of a step (the worker is this program) before main. Built with it, the
+// sandbox sets no RLIMIT_AS and limits memory with ASan's allocator instead: an allocation
+// above the limit fails (as it would under RLIMIT_AS) and a process whose resident memory
+// passes it is stopped. Programs of the step built without ASan (a compiler) then have no
+// memory limit but the private /tmp's size: the asan build tests pinsim, it does not grade.
+#if defined(__SANITIZE_ADDRESS__)
+constexpr bool kAddressSanitizer = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+constexpr bool kAddressSanitizer = true;
+#else
+constexpr bool kAddressSanitizer = false;
+#endif
+#else
+constexpr bool kAddressSanitizer = false;
+#endif
+
+/// ASAN_OPTIONS for a step of an ASan build: the grader's own, then the memory limit. A
+/// step's crashes are the submission's: they end the process by their signal, as in any
+/// other build (ASan would report them and exit 1), and its leaks are not pinsim's.
+std::string asan_options(const SandboxLimits& l) {
+  const char* own = std::getenv("ASAN_OPTIONS");
+  const std::string mb = std::to_string(static_cast<long long>(std::ceil(l.memory_mb)));
+  return (own && *own ? std::string(own) + ":" : std::string()) + "hard_rss_limit_mb=" + mb +
+         ":max_allocation_size_mb=" + mb +
+         ":allocator_may_return_null=1:detect_leaks=0:handle_segv=0:handle_sigbus=0"
+         ":handle_sigfpe=0:handle_sigill=0";
+}
+
 // Root grades as a uid of its own, unused by any account: 200000 + (pid mod 100000), one per
 // grader process (as IOI's isolate gives each box its own uid). RLIMIT_NPROC counts the
 // processes of a uid, so a fork bomb in one grade cannot starve a grade running beside it.
@@ -118,9 +150,15 @@ std::vector<std::string> bwrap_args(const SandboxSpec& spec, const std::vector<s
     }
     a.insert(a.end(), {m.writable ? "--bind" : "--ro-bind", m.host, m.inside});
   }
-  a.insert(a.end(), {"--chdir", spec.cwd, "--clearenv", "--setenv", "PATH", "/usr/bin:/bin",
-                     "--setenv", "HOME", "/tmp", "--setenv", "TMPDIR", "/tmp", "--setenv", "LANG",
-                     "C.UTF-8", "--info-fd", "4", "--"});
+  a.insert(a.end(),
+           {"--chdir", spec.cwd, "--clearenv", "--setenv", "PATH", "/usr/bin:/bin", "--setenv",
+            "HOME", "/tmp", "--setenv", "TMPDIR", "/tmp", "--setenv", "LANG", "C.UTF-8"});
+  if (kAddressSanitizer) {
+    a.insert(a.end(), {"--setenv", "ASAN_OPTIONS", asan_options(spec.limits)});
+    if (const char* u = std::getenv("UBSAN_OPTIONS"))
+      a.insert(a.end(), {"--setenv", "UBSAN_OPTIONS", u});
+  }
+  a.insert(a.end(), {"--info-fd", "4", "--"});
   if (root) {
     // Root: bubblewrap sets up the namespaces privileged; the command itself runs as the sandbox
     // uid, with no capabilities (a uid change from 0 clears them).
@@ -164,7 +202,7 @@ std::vector<std::string> host_args(const SandboxSpec& spec, std::vector<std::str
   const auto cpu = static_cast<rlim_t>(std::ceil(l.cpu_seconds));
   set_limit(RLIMIT_CPU, cpu, cpu + 1);
   const auto mem = static_cast<rlim_t>(l.memory_mb * 1048576.0);
-  set_limit(RLIMIT_AS, mem, mem);
+  if (!kAddressSanitizer) set_limit(RLIMIT_AS, mem, mem);
   const auto fsize = static_cast<rlim_t>(l.file_mb * 1048576.0);
   set_limit(RLIMIT_FSIZE, fsize, fsize);
   set_limit(RLIMIT_NOFILE, static_cast<rlim_t>(l.open_files), static_cast<rlim_t>(l.open_files));
@@ -274,7 +312,9 @@ Sandboxed start_sandboxed(const std::vector<std::string>& argv, const SandboxSpe
     throw std::runtime_error("pipe: " + std::string(std::strerror(errno)));
   if (spec.channel && ::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, chan) != 0)
     throw std::runtime_error("socketpair: " + std::string(std::strerror(errno)));
-  const std::vector<std::string> args = g_unsafe ? host_args(spec, argv) : bwrap_args(spec, argv);
+  std::vector<std::string> args = g_unsafe ? host_args(spec, argv) : bwrap_args(spec, argv);
+  if (g_unsafe && kAddressSanitizer)  // the memory limit, as bwrap_args sets it in a sandbox
+    args.insert(args.begin(), {"/usr/bin/env", "ASAN_OPTIONS=" + asan_options(spec.limits)});
   std::string cwd;
   if (g_unsafe) cwd = host_args(spec, {spec.cwd})[0];
   std::fflush(nullptr);
