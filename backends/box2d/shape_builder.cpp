@@ -55,15 +55,13 @@ class Builder {
     throw Error(ctx_ + ": " + path + ": unsupported by box2d (obstacle '" + id_ + "'): " + what);
   }
 
-  static Xform node_xform(const nlohmann::json& j) {
-    Xform x;
+  static Transform node_xform(const nlohmann::json& j) {
+    Transform x;
     if (j.contains("transform") && !j["transform"].is_null()) {
       const auto& tr = j["transform"];
       if (tr.contains("translate"))
         x.t = Vec2(tr["translate"][0].get<double>(), tr["translate"][1].get<double>());
-      const double a = tr.value("rotate", 0.0);
-      x.c = std::cos(a);
-      x.s = std::sin(a);
+      x.r = Rotation::from_angle(tr.value("rotate", 0.0));
     }
     return x;
   }
@@ -72,12 +70,13 @@ class Builder {
   }
 
   /// Corners of a box (counter-clockwise) in the parent frame.
-  static std::vector<Vec2> box_corners(const Xform& x, const Vec2& c, const Vec2& h, double angle) {
-    const double ca = std::cos(angle), sa = std::sin(angle);
+  static std::vector<Vec2> box_corners(const Transform& x, const Vec2& c, const Vec2& h,
+                                       double angle) {
+    const Rotation box = Rotation::from_angle(angle);
     std::vector<Vec2> out;
     for (const Vec2& q :
          {Vec2(-h.x(), -h.y()), Vec2(h.x(), -h.y()), Vec2(h.x(), h.y()), Vec2(-h.x(), h.y())})
-      out.push_back(x.apply(c + Vec2(ca * q.x() - sa * q.y(), sa * q.x() + ca * q.y())));
+      out.push_back(x.apply(c + box.apply(q)));
     return out;
   }
 
@@ -117,8 +116,8 @@ class Builder {
   }
 
   /// A solid shape (not a container), transform `x` already includes the node's own.
-  void solid(const nlohmann::json& j, const Xform& parent, const std::string& path) {
-    const Xform x = parent.then_local(node_xform(j));
+  void solid(const nlohmann::json& j, const Transform& parent, const std::string& path) {
+    const Transform x = parent.compose(node_xform(j));
     const std::string type = j["type"].get<std::string>();
     if (type == "circle") {
       circle(x.apply(v2(j, "center")), j["radius"].get<double>());
@@ -175,7 +174,7 @@ class Builder {
       polygon(pts, 0.0, path);
     } else if (type == "half_plane") {
       // A long one-sided edge, colliding on the normal's side (Box2D: right of a->b).
-      const Vec2 n = x.rotate(v2(j, "normal").normalized());
+      const Vec2 n = x.r.apply(v2(j, "normal").normalized());
       const Vec2 p0 = x.apply(v2(j, "point"));
       const Vec2 along(-n.y(), n.x());
       const Vec2 foot = p0 + along * along.dot(opt_.centre - p0);
@@ -209,9 +208,9 @@ class Builder {
   }
 
   /// Closed counter-clockwise outline of a leaf of a container's shape.
-  void outline(const nlohmann::json& j, const Xform& parent, const std::string& path,
+  void outline(const nlohmann::json& j, const Transform& parent, const std::string& path,
                std::vector<std::vector<Vec2>>& loops) {
-    const Xform x = parent.then_local(node_xform(j));
+    const Transform x = parent.compose(node_xform(j));
     const std::string type = j["type"].get<std::string>();
     if (type == "union") {
       for (std::size_t k = 0; k < j["shapes"].size(); ++k)
@@ -248,7 +247,7 @@ class Builder {
 
   /// The ball lives inside `j`: the boundary of the union of its leaves as chain loops,
   /// wound clockwise so that Box2D's one-sided chains collide from the inside.
-  void container(const nlohmann::json& j, const Xform& x, const std::string& path) {
+  void container(const nlohmann::json& j, const Transform& x, const std::string& path) {
     std::vector<std::vector<Vec2>> loops;
     outline(j, x, path, loops);
     struct Seg {
@@ -406,7 +405,7 @@ std::vector<Piece> build_pieces(const nlohmann::json& shape, const std::string& 
                                 const std::string& path, const std::string& id,
                                 const BuildOptions& opt) {
   Builder b(ctx, id, opt);
-  b.solid(shape, Xform{}, path);
+  b.solid(shape, Transform{}, path);
   return std::move(b.out);
 }
 

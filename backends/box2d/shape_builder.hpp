@@ -6,6 +6,7 @@
 #pragma once
 
 #include <pinsim/plugin.hpp>
+#include <pinsim/transform.hpp>
 #include <string>
 #include <vector>
 
@@ -20,20 +21,6 @@ struct Piece {
   double radius = 0.0;  ///< circle radius; rounding radius of a polygon or edge (capsule)
   Vec2 ghost0{0.0, 0.0}, ghost1{0.0, 0.0};  ///< kChain: vertices before the first / after the last
   bool one_sided = false;                   ///< kEdge: collides on the right of a->b only
-};
-
-/// Rigid transform world = R p + t (R by angle with cos c, sin s).
-struct Xform {
-  double c = 1.0, s = 0.0;
-  Vec2 t{0.0, 0.0};
-  Vec2 apply(const Vec2& p) const {
-    return {c * p.x() - s * p.y() + t.x(), s * p.x() + c * p.y() + t.y()};
-  }
-  Vec2 rotate(const Vec2& p) const { return {c * p.x() - s * p.y(), s * p.x() + c * p.y()}; }
-  /// this ∘ o
-  Xform then_local(const Xform& o) const {
-    return {c * o.c - s * o.s, s * o.c + c * o.s, apply(o.t)};
-  }
 };
 
 struct BuildOptions {

@@ -10,13 +10,6 @@
 namespace pinsim::sdf {
 namespace {
 
-inline Vec2 rot(double c, double s, const Vec2& v) {
-  return {c * v.x() - s * v.y(), s * v.x() + c * v.y()};
-}
-inline Vec2 rot_inv(double c, double s, const Vec2& v) {
-  return {c * v.x() + s * v.y(), -s * v.x() + c * v.y()};
-}
-
 using InputMap = std::map<std::string, std::vector<std::pair<double, bool>>>;
 
 InputMap parse_inputs(const JsonIn& scene, std::vector<std::string>& names) {
@@ -272,8 +265,9 @@ Sdf ObstacleField::eval_at(const Obstacle& o, const Vec2& p, double t) const {
     case MotionType::kFlipper: {
       double c = 1.0, s = 0.0;
       o.timeline->value_cos_sin(t, c, s);
-      Sdf r = o.shape.eval<G>(rot_inv(c, s, p - o.pivot));
-      if constexpr (G) r.g = rot(c, s, r.g);
+      const Rotation rot{c, s};
+      Sdf r = o.shape.eval<G>(rot.apply_inverse(p - o.pivot));
+      if constexpr (G) r.g = rot.apply(r.g);
       return r;
     }
     case MotionType::kSlider:
@@ -371,7 +365,7 @@ Vec2 ObstacleField::carry(std::size_t k, const Vec2& p, double t0, double t1) co
       return p;
     case MotionType::kFlipper: {
       const double a = o.timeline->value(t1) - o.timeline->value(t0);
-      return o.pivot + rot(std::cos(a), std::sin(a), p - o.pivot);
+      return o.pivot + Rotation::from_angle(a).apply(p - o.pivot);
     }
     case MotionType::kSlider:
       return p + (o.timeline->value(t1) - o.timeline->value(t0)) * o.offset;
@@ -391,7 +385,7 @@ double ObstacleField::cell_lower_bound(std::size_t k, const Vec2& c, double rad)
     const double lo = o.timeline->lo(), step = (o.timeline->hi() - lo) / kSamples;
     for (int i = 0; i < kSamples; ++i) {
       const double a = lo + (i + 0.5) * step;
-      lb = std::min(lb, o.shape.eval<false>(rot_inv(std::cos(a), std::sin(a), c - o.pivot)).d);
+      lb = std::min(lb, o.shape.eval<false>(Rotation::from_angle(a).apply_inverse(c - o.pivot)).d);
     }
     slack = o.reach * 0.5 * step;
   } else if (o.motion == MotionType::kSlider) {

@@ -12,10 +12,6 @@ namespace {
 
 constexpr int kMaxDepth = 32;
 
-/// Rotates v by the angle with cos c, sin s.
-inline Vec2 rot(double c, double s, const Vec2& v) {
-  return {c * v.x() - s * v.y(), s * v.x() + c * v.y()};
-}
 inline double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
 
 /// True if closed segments pq and rs share a point.
@@ -34,12 +30,12 @@ bool segments_touch(const Vec2& p, const Vec2& q, const Vec2& r, const Vec2& s) 
          (o3 == 0 && on_seg(r, s, p)) || (o4 == 0 && on_seg(r, s, q));
 }
 
-Aabb transform_box(const Aabb& b, double c, double s, const Vec2& t) {
+Aabb transform_box(const Aabb& b, const Transform& tf) {
   if (!b.bounded || b.empty()) return b;
   Aabb out;
   for (int k = 0; k < 4; ++k) {
     const Vec2 corner((k & 1) ? b.hi.x() : b.lo.x(), (k & 2) ? b.hi.y() : b.lo.y());
-    out.add(rot(c, s, corner) + t);
+    out.add(tf.apply(corner));
   }
   return out;
 }
@@ -61,10 +57,8 @@ using ShapeParser = void (*)(const JsonIn& j, ShapeNode& n, TreeParts& tree);
 void read_transform(const JsonIn& tr, ShapeNode& n) {
   tr.only({"translate", "rotate"});
   n.transformed = true;
-  n.tt = tr.vec2("translate", Vec2(0.0, 0.0));
-  const double a = tr.number("rotate", 0.0);
-  n.tc = std::cos(a);
-  n.ts = std::sin(a);
+  n.tf.t = tr.vec2("translate", Vec2(0.0, 0.0));
+  n.tf.r = Rotation::from_angle(tr.number("rotate", 0.0));
 }
 
 // circle: center, radius > 0; evaluated as a rounded box of half size 0.
@@ -323,7 +317,8 @@ Aabb ShapeTree::bounds_node(uint32_t i) const {
     case ShapeType::kRoundedBox: {
       const Vec2 h = n.b + Vec2(n.r0, n.r0);
       for (int k = 0; k < 4; ++k)
-        b.add(n.c + rot(n.ca, n.sa, Vec2((k & 1) ? h.x() : -h.x(), (k & 2) ? h.y() : -h.y())));
+        b.add(n.c +
+              Rotation{n.ca, n.sa}.apply(Vec2((k & 1) ? h.x() : -h.x(), (k & 2) ? h.y() : -h.y())));
       break;
     }
     case ShapeType::kTaperedCapsule:
@@ -366,14 +361,14 @@ Aabb ShapeTree::bounds_node(uint32_t i) const {
       b = bounds_node(children_[n.first]);
       break;
   }
-  return n.transformed ? transform_box(b, n.tc, n.ts, n.tt) : b;
+  return n.transformed ? transform_box(b, n.tf) : b;
 }
 
 Aabb ShapeTree::boundary_bounds() const {
   const ShapeNode& n = nodes_[root_];
   if (n.type == ShapeType::kInside) {
     const Aabb b = bounds_node(children_[n.first]);
-    return n.transformed ? transform_box(b, n.tc, n.ts, n.tt) : b;
+    return n.transformed ? transform_box(b, n.tf) : b;
   }
   return bounds();
 }
@@ -425,8 +420,8 @@ std::pair<double, double> ShapeTree::segment_node(uint32_t i, const Vec2& aw,
                                                   const Vec2& bw) const {
   using namespace eval_detail;
   const ShapeNode& n = nodes_[i];
-  const Vec2 a = n.transformed ? rot_inv(n.tc, n.ts, aw - n.tt) : aw;
-  const Vec2 b = n.transformed ? rot_inv(n.tc, n.ts, bw - n.tt) : bw;
+  const Vec2 a = n.transformed ? n.tf.apply_inverse(aw) : aw;
+  const Vec2 b = n.transformed ? n.tf.apply_inverse(bw) : bw;
   switch (n.type) {
     case ShapeType::kUnion:
     case ShapeType::kIntersection: {

@@ -3,6 +3,7 @@
 
 #include <cstdint>
 #include <pinsim/plugin.hpp>
+#include <pinsim/transform.hpp>
 #include <utility>
 #include <vector>
 
@@ -68,8 +69,7 @@ enum class ShapeType : uint8_t {
 struct ShapeNode {
   ShapeType type = ShapeType::kCircle;
   bool transformed = false;
-  double tc = 1.0, ts = 0.0;  ///< transform rotation cos/sin: world = R local + tt
-  Vec2 tt{0.0, 0.0};
+  Transform tf;               ///< the node's transform: world = tf.apply(local)
   Vec2 c{0.0, 0.0};           ///< centre (circle, box, capsule midpoint) / a / point
   Vec2 b{0.0, 0.0};           ///< half size (capsule: (length / 2, 0)) / axis / normal
   double ca = 1.0, sa = 0.0;  ///< primitive orientation (box angle, arc middle, capsule axis)

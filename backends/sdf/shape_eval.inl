@@ -12,14 +12,6 @@
 namespace pinsim::sdf {
 namespace eval_detail {
 
-/// Rotates v by the angle with cos c, sin s.
-inline Vec2 rot(double c, double s, const Vec2& v) {
-  return {c * v.x() - s * v.y(), s * v.x() + c * v.y()};
-}
-/// Rotates v by minus that angle.
-inline Vec2 rot_inv(double c, double s, const Vec2& v) {
-  return {c * v.x() + s * v.y(), -s * v.x() + c * v.y()};
-}
 inline double sgn(double x) { return x < 0.0 ? -1.0 : 1.0; }
 
 // std::max, std::min and std::clamp on doubles, the same results (NaNs too) without the
@@ -70,7 +62,7 @@ template <bool G>
 [[gnu::always_inline]] inline Sdf ShapeTree::eval_box(const ShapeNode& n, const Vec2& p) {
   using namespace eval_detail;
   Sdf out;
-  const Vec2 q = rot_inv(n.ca, n.sa, p - n.c);
+  const Vec2 q = Rotation{n.ca, n.sa}.apply_inverse(p - n.c);
   const double wx = std::abs(q.x()) - n.b.x(), wy = std::abs(q.y()) - n.b.y();
   const double ox = max_of(wx, 0.0), oy = max_of(wy, 0.0);
   const double outside = std::sqrt(ox * ox + oy * oy);
@@ -83,7 +75,7 @@ template <bool G>
       g = Vec2(sgn(q.x()), 0.0);
     else  // also a circle's centre and a capsule's axis: the local +-y
       g = Vec2(0.0, sgn(q.y()));
-    out.g = rot(n.ca, n.sa, g);
+    out.g = Rotation{n.ca, n.sa}.apply(g);
   }
   return out;
 }
@@ -202,7 +194,7 @@ template <bool G>
 inline Sdf ShapeTree::eval_node(uint32_t i, const Vec2& pw) const {
   using namespace eval_detail;
   const ShapeNode& n = nodes_[i];
-  const Vec2 p = n.transformed ? rot_inv(n.tc, n.ts, pw - n.tt) : pw;
+  const Vec2 p = n.transformed ? n.tf.apply_inverse(pw) : pw;
   Sdf out;
   switch (n.type) {
     case ShapeType::kUnion: {
@@ -240,7 +232,7 @@ inline Sdf ShapeTree::eval_node(uint32_t i, const Vec2& pw) const {
       out = eval_primitive<G>(n, p);
   }
   if constexpr (G)
-    if (n.transformed) out.g = rot(n.tc, n.ts, out.g);
+    if (n.transformed) out.g = n.tf.r.apply(out.g);
   return out;
 }
 
