@@ -41,6 +41,11 @@ class Box2dBackend {
   void input(const std::string& name, bool pressed, double t) { field_.input(name, pressed, t); }
   /// Signed distance to the nearest obstacle at time t (the exact SDF, for tools).
   double distance(const Vec2& p, double t, int64_t* obstacle) const;
+  /// The obstacles' outlines and bounds from the shared obstacle description, as the sdf
+  /// backend reports them (sdf::outline_set): the shapes the fixtures are built from.
+  OutlineSet outline(const StateView& s, double tolerance) const {
+    return sdf::outline_set(field_, s, tolerance);
+  }
 
   /// Box2D length units per scene unit.
   double length_scale() const { return scale_; }

@@ -30,6 +30,9 @@ class NoneBackend {
     if (obstacle) *obstacle = -1;
     return HUGE_VAL;
   }
+
+  /// No obstacles: nothing to outline, empty bounds.
+  OutlineSet outline(const StateView&, double) const { return {}; }
 };
 
 }  // namespace pinsim::backends

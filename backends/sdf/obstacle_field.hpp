@@ -88,6 +88,25 @@ class ObstacleField {
   /// Grid statistics: cells and mean candidates per cell.
   std::pair<std::size_t, double> grid_stats() const;
 
+  /// Obstacle k's boundary at time t, world frame, and its bounds then and over every pose
+  /// its motion can take (see obstacle_outline.cpp).
+  struct Outline {
+    std::vector<Ring> rings;  ///< closed, the solid on the left
+    Aabb bounds;              ///< of the rings at t
+    Aabb sweep;               ///< of the rings over the motion's whole range
+  };
+  /// The outline of obstacle k at time t within `tol`; half-planes cut to `clip`.
+  Outline outline(std::size_t k, double t, double tol, const Ring& clip) const;
+  /// Bounds of the obstacles' bounded parts over all time: static boundaries, each
+  /// flipper's reach about its pivot, each slider's stroke.
+  Aabb finite_bounds() const;
+  /// The default outline tolerance: 1e-3 of the larger side of finite_bounds() (1e-3 if
+  /// that is empty).
+  double default_outline_tolerance() const;
+  /// The rectangle unbounded obstacles (half-planes) are cut to: finite_bounds() and the
+  /// `extra` points, grown on every side by a tenth of its larger side (1 if that is 0).
+  Ring outline_clip(const std::vector<Vec2>& extra) const;
+
  private:
   template <bool G>
   Sdf eval_at(const Obstacle& o, const Vec2& p, double t) const;
@@ -124,5 +143,10 @@ class ObstacleField {
   std::vector<Cell> g_cells_;  ///< nx*ny, row by row
   std::vector<Candidate> g_cand_;
 };
+
+/// Every obstacle's outline for the state s (time s.t; its particles widen the clip of
+/// half-planes) within `tolerance` (<= 0: field.default_outline_tolerance()), as a backend's
+/// outline() returns it.
+OutlineSet outline_set(const ObstacleField& field, const StateView& s, double tolerance);
 
 }  // namespace pinsim::sdf

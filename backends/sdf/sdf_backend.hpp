@@ -29,6 +29,11 @@ class SdfBackend {
   void input(const std::string& name, bool pressed, double t);
   /// Signed distance from p to the nearest obstacle at time t (HUGE_VAL if none).
   double distance(const Vec2& p, double t, int64_t* obstacle) const;
+  /// Each obstacle's boundary at s.t as closed polylines within `tolerance` (<= 0: 1e-3 of
+  /// the obstacles' extent), its bounds then and over its motion (sdf::outline_set).
+  OutlineSet outline(const StateView& s, double tolerance) const {
+    return outline_set(field_, s, tolerance);
+  }
 
   const SdfStats& stats() const { return stats_; }
   const ObstacleField& field() const { return field_; }

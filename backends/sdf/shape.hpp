@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "json_in.hpp"
+#include "outline.hpp"
 
 namespace pinsim::sdf {
 
@@ -126,6 +127,9 @@ class ShapeTree {
   Aabb boundary_bounds() const;
   /// Number of primitives (leaves).
   std::size_t primitives() const;
+  /// The boundary as closed rings in the shape frame (see shape_outline.cpp): arcs within
+  /// `tol` of the exact curve, half-planes cut to the convex polygon `clip` (shape frame).
+  Rings outline(double tol, const Ring& clip) const;
 
  private:
   uint32_t parse_node(const JsonIn& j, int depth);
@@ -136,6 +140,7 @@ class ShapeTree {
   template <bool G>
   static Sdf eval_box(const ShapeNode& n, const Vec2& p);
   Aabb bounds_node(uint32_t i) const;
+  Rings outline_node(uint32_t i, double tol, const Ring& clip, double frame) const;
   std::pair<double, double> segment_node(uint32_t i, const Vec2& a, const Vec2& b) const;
 
   std::vector<ShapeNode> nodes_;

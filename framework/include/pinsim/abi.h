@@ -22,8 +22,12 @@ extern "C" {
 #endif
 
 /** Bumped on every incompatible change of any struct in this file.
- *  2: pinsim_backend_api gained input() (PINSIM_CAP_INPUTS). */
-#define PINSIM_ABI_VERSION 2u
+ *  2: pinsim_backend_api gained input() (PINSIM_CAP_INPUTS).
+ *  3: pinsim_backend_api gained outline() (PINSIM_CAP_OUTLINES). The new member makes
+ *     sizeof(pinsim_plugin) larger, so a table of version 2 is shorter than the host reads;
+ *     the host refuses any version but its own, naming both ("rebuild it against this
+ *     SDK"), before it reads a member past struct_size. */
+#define PINSIM_ABI_VERSION 3u
 
 /** Force arity of a plugin whose elements have variable length: each element is a whole
  *  body or a closed ring (all of a blob's boundary particles in order), not a fixed-size
@@ -48,7 +52,8 @@ enum {
   PINSIM_CAP_DISSIPATIVE = 1u << 4,      /**< force: has a velocity-dependent damping part */
   PINSIM_CAP_DISTANCE = 1u << 8,         /**< backend: distance() is provided */
   PINSIM_CAP_PARTICLE_CONTACT = 1u << 9, /**< backend: can resolve particle-particle contacts */
-  PINSIM_CAP_INPUTS = 1u << 10           /**< backend: input() is provided */
+  PINSIM_CAP_INPUTS = 1u << 10,          /**< backend: input() is provided */
+  PINSIM_CAP_OUTLINES = 1u << 11         /**< backend: outline() is provided */
 };
 
 /** Declared parameter types. */
@@ -131,6 +136,29 @@ typedef struct pinsim_event_sink {
   void (*emit)(void* context, const pinsim_event* event);
 } pinsim_event_sink;
 
+/** An axis-aligned rectangle, scene units; empty when x0 > x1 (none: +inf, +inf, -inf, -inf). */
+typedef struct pinsim_bounds {
+  double x0, y0, x1, y1;
+} pinsim_bounds;
+
+/** One obstacle's outline, reported by a backend's outline(). Valid during the emit call. */
+typedef struct pinsim_outline {
+  int64_t obstacle;           /**< index into the scene's "obstacles" array */
+  const char* id;             /**< the obstacle's id */
+  pinsim_bounds bounds;       /**< bounds of its boundary at the state's time */
+  pinsim_bounds sweep;        /**< bounds of its boundary over every pose its motion can take
+                                   (= bounds for a static obstacle) */
+  uint32_t n_rings;           /**< closed polylines of its boundary */
+  const uint32_t* ring_sizes; /**< points in each ring (the first point is not repeated) */
+  const double* points;       /**< every ring's points one after another, x0 y0 x1 y1 ..., scene
+                                   units; a ring runs with the solid on its left */
+} pinsim_outline;
+
+typedef struct pinsim_outline_sink {
+  void* context;
+  void (*emit)(void* context, const pinsim_outline* outline);
+} pinsim_outline_sink;
+
 /** What create() receives. */
 typedef struct pinsim_create_args {
   const char* params_json; /**< validated parameters, defaults filled, a JSON object */
@@ -168,6 +196,15 @@ typedef struct pinsim_backend_api {
    *  or after every earlier event and equal to the state time of the next advance(); an
    *  unknown name is an error naming it. NULL unless PINSIM_CAP_INPUTS. */
   int (*input)(void* self, const char* name, int pressed, double t, pinsim_error* err);
+  /** The obstacles' outlines for the state s (its time; its particles may size the part of
+   *  an unbounded obstacle, a half-plane, that is outlined): each obstacle once, in scene
+   *  order, to `sink`, as closed polylines within `tolerance` of the exact boundary (scene
+   *  units; <= 0: the backend's default, documented in its README); *bounds and *sweep
+   *  (either may be NULL) receive the bounds of the whole set at s.t and over every pose.
+   *  NULL unless PINSIM_CAP_OUTLINES. */
+  int (*outline)(void* self, const pinsim_state_view* s, double tolerance,
+                 const pinsim_outline_sink* sink, pinsim_bounds* bounds, pinsim_bounds* sweep,
+                 pinsim_error* err);
 } pinsim_backend_api;
 
 /** The table a plugin exports. Check abi_version and struct_size before anything else. */

@@ -16,6 +16,9 @@
 //   double distance(const pinsim::Vec2& p, double t, int64_t* obstacle) const; // -> CAP_DISTANCE
 //   void input(const std::string& name, bool pressed, double t);               // -> CAP_INPUTS
 //     (a live press/release at time t, between steps, in time order; throw on an unknown name)
+//   pinsim::OutlineSet outline(const pinsim::StateView& s, double tolerance) const;
+//                                                                       // -> CAP_OUTLINES
+//     (each obstacle's boundary as closed polylines at s.t, and bounds; for pictures)
 //
 // Then, once, at namespace scope in one .cpp file:  PINSIM_PLUGIN(MyForce)
 // The macro builds the C table of pinsim/abi.h, exports `pinsim_plugin_entry`, derives the
@@ -26,6 +29,7 @@
 #include <pinsim/abi.h>
 
 #include <Eigen/Core>
+#include <algorithm>
 #include <cmath>
 #include <concepts>
 #include <cstdint>
@@ -112,6 +116,33 @@ class EventSink {
 
  private:
   const pinsim_event_sink* sink_;
+};
+
+/// A rectangle with nothing in it (any add_bounds replaces it).
+inline pinsim_bounds empty_bounds() { return {HUGE_VAL, HUGE_VAL, -HUGE_VAL, -HUGE_VAL}; }
+/// Grows b to hold o (an empty o adds nothing).
+inline void add_bounds(pinsim_bounds& b, const pinsim_bounds& o) {
+  if (!(o.x0 <= o.x1 && o.y0 <= o.y1)) return;
+  b.x0 = std::min(b.x0, o.x0);
+  b.y0 = std::min(b.y0, o.y0);
+  b.x1 = std::max(b.x1, o.x1);
+  b.y1 = std::max(b.y1, o.y1);
+}
+
+/// One obstacle's outline, as a backend's outline() reports it (pinsim_outline).
+struct ObstacleOutline {
+  int64_t obstacle = -1;                  ///< index into the scene's "obstacles"
+  std::string id;                         ///< the obstacle's id
+  pinsim_bounds bounds = empty_bounds();  ///< its boundary's bounds at the state's time
+  pinsim_bounds sweep = empty_bounds();   ///< ... over every pose its motion can take
+  std::vector<std::vector<Vec2>> rings;   ///< closed polylines, solid on the left, scene units
+};
+
+/// What outline() returns: each obstacle in scene order, and the bounds of the whole set.
+struct OutlineSet {
+  std::vector<ObstacleOutline> obstacles;
+  pinsim_bounds bounds = empty_bounds();  ///< every obstacle's bounds
+  pinsim_bounds sweep = empty_bounds();   ///< every obstacle's sweep
 };
 
 /// Element lists: element e has particles (e, 0) ... (e, size(e) - 1). For a fixed arity
@@ -330,6 +361,32 @@ template <class T>
 concept HasInput = requires(T& t, const std::string& name, bool pressed, double time) {
   t.input(name, pressed, time);
 };
+template <class T>
+concept HasOutline = requires(const T& t, const StateView& s, double tolerance) {
+  { t.outline(s, tolerance) } -> std::convertible_to<OutlineSet>;
+};
+
+/// Hands each obstacle of `set` to the sink as a pinsim_outline.
+inline void emit_outlines(const OutlineSet& set, const pinsim_outline_sink* sink) {
+  if (sink == nullptr || sink->emit == nullptr) return;
+  std::vector<uint32_t> sizes;
+  std::vector<double> points;
+  for (const ObstacleOutline& o : set.obstacles) {
+    sizes.clear();
+    points.clear();
+    for (const auto& ring : o.rings) {
+      sizes.push_back(static_cast<uint32_t>(ring.size()));
+      for (const Vec2& p : ring) {
+        points.push_back(p.x());
+        points.push_back(p.y());
+      }
+    }
+    const pinsim_outline c{
+        o.obstacle,   o.id.c_str(), o.bounds, o.sweep, static_cast<uint32_t>(sizes.size()),
+        sizes.data(), points.data()};
+    sink->emit(sink->context, &c);
+  }
+}
 
 /// Owns the strings behind the C table for the library's lifetime.
 struct TableStorage {
@@ -458,6 +515,19 @@ const pinsim_plugin* make_table() {
                                 pinsim_error* err) noexcept {
           return guarded(
               err, [&] { *d = static_cast<const T*>(self)->distance(Vec2(p[0], p[1]), time, o); });
+        };
+      }
+      if constexpr (HasOutline<T>) {
+        t.capabilities |= PINSIM_CAP_OUTLINES;
+        t.backend.outline = [](void* self, const pinsim_state_view* sv, double tolerance,
+                               const pinsim_outline_sink* sink, pinsim_bounds* bounds,
+                               pinsim_bounds* sweep, pinsim_error* err) noexcept {
+          return guarded(err, [&] {
+            const OutlineSet set = static_cast<const T*>(self)->outline(StateView(*sv), tolerance);
+            emit_outlines(set, sink);
+            if (bounds != nullptr) *bounds = set.bounds;
+            if (sweep != nullptr) *sweep = set.sweep;
+          });
         };
       }
       if constexpr (HasInput<T>) {

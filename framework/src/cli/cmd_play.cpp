@@ -131,28 +131,31 @@ class Painter {
  public:
   Painter(const PinballGame& g, const PixelMap& map, cairo_surface_t* background)
       : map_(map), background_(background) {
-    // Regions around each moving obstacle, resampled every frame.
+    // Regions around each moving obstacle (where its motion can take it, as the backend
+    // reports it), resampled every frame.
     const json& bs = g.scene().backend_scene;
-    if (bs.contains("obstacles"))
-      for (const auto& o : bs["obstacles"]) {
-        if (!o.contains("motion")) continue;
-        json one = bs;
-        one["obstacles"] = json::array({o});
-        ViewBox v = obstacles_view(one);
-        if (v.empty()) continue;
-        v.pad(0.05);
-        PixelMap sub;
-        sub.scale = map.scale;
-        const double px0 = std::floor(std::max(0.0, map.px(v.x0)));
-        const double py0 = std::floor(std::max(0.0, map.py(v.y1)));
-        const double px1 = std::ceil(std::min<double>(map.width, map.px(v.x1)));
-        const double py1 = std::ceil(std::min<double>(map.height, map.py(v.y0)));
-        if (!(px1 > px0 && py1 > py0)) continue;
-        sub.width = static_cast<int>(px1 - px0);
-        sub.height = static_cast<int>(py1 - py0);
-        sub.view = ViewBox{map.wx(px0), map.wy(py1), map.wx(px1), map.wy(py0)};
-        regions_.push_back({sub, px0, py0});
-      }
+    const json& obs = bs.contains("obstacles") ? bs["obstacles"] : json::array();
+    if (!g.backend().has_outline()) return;
+    for (const auto& o : g.backend().outline(g.state(), 0.0).obstacles) {
+      const auto k = static_cast<std::size_t>(o.index);
+      if (k >= obs.size() || !obs[k].contains("motion")) continue;
+      ViewBox v = inverted_view();
+      v.add(o.sweep.x0, o.sweep.y0);
+      v.add(o.sweep.x1, o.sweep.y1);
+      if (v.empty()) continue;
+      v.pad(0.05);
+      PixelMap sub;
+      sub.scale = map.scale;
+      const double px0 = std::floor(std::max(0.0, map.px(v.x0)));
+      const double py0 = std::floor(std::max(0.0, map.py(v.y1)));
+      const double px1 = std::ceil(std::min<double>(map.width, map.px(v.x1)));
+      const double py1 = std::ceil(std::min<double>(map.height, map.py(v.y0)));
+      if (!(px1 > px0 && py1 > py0)) continue;
+      sub.width = static_cast<int>(px1 - px0);
+      sub.height = static_cast<int>(py1 - py0);
+      sub.view = ViewBox{map.wx(px0), map.wy(py1), map.wx(px1), map.wy(py0)};
+      regions_.push_back({sub, px0, py0});
+    }
   }
 
   void paint(cairo_t* cr, const PinballGame& g) {
@@ -268,7 +271,7 @@ int play_command(const PlayArgs& a) {
   if (!a.script.empty()) script = read_script(a.script);
 
   // The static table, pre-rendered once.
-  const PixelMap map(scene_view(scene), a.width);
+  const PixelMap map(scene_view(scene, game->backend()), a.width);
   const CairoSurface bg = image_surface(map.width, map.height);
   {
     const CairoContext cr = cairo_context(bg.get());

@@ -100,6 +100,37 @@ double BackendInstance::distance(double x, double y, double t, int64_t* obstacle
   return d;
 }
 
+OutlineReport BackendInstance::outline(const State& s, double tolerance) const {
+  if (!has_outline())
+    throw PluginError(context_ + ": backend '" + plugin_->name() +
+                      "' does not report its obstacles' outlines (no PINSIM_CAP_OUTLINES)");
+  OutlineReport out;
+  pinsim_outline_sink sink{&out, [](void* context, const pinsim_outline* o) {
+                             auto* r = static_cast<OutlineReport*>(context);
+                             OutlineReport::Obstacle ob;
+                             ob.index = o->obstacle;
+                             ob.id = o->id != nullptr ? o->id : "";
+                             ob.bounds = o->bounds;
+                             ob.sweep = o->sweep;
+                             const double* p = o->points;
+                             for (uint32_t k = 0; k < o->n_rings; ++k) {
+                               std::vector<Eigen::Vector2d> ring(o->ring_sizes[k]);
+                               for (auto& q : ring) {
+                                 q = Eigen::Vector2d(p[0], p[1]);
+                                 p += 2;
+                               }
+                               ob.rings.push_back(std::move(ring));
+                             }
+                             r->obstacles.push_back(std::move(ob));
+                           }};
+  pinsim_error err = make_err(err_);
+  const pinsim_state_view v = s.view();
+  if (plugin_->table->backend.outline(self_, &v, tolerance, &sink, &out.bounds, &out.sweep, &err) !=
+      0)
+    fail("outline");
+  return out;
+}
+
 void BackendInstance::input(const std::string& name, bool pressed, double t) {
   if (!has_input())
     throw PluginError(context_ + ": backend '" + plugin_->name() +

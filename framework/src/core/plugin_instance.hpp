@@ -62,6 +62,20 @@ class ForceInstance {
   mutable std::vector<char> err_;
 };
 
+/// What a backend's outline() reported (PINSIM_CAP_OUTLINES), copied out of the plugin.
+struct OutlineReport {
+  struct Obstacle {
+    int64_t index = -1;  ///< into the scene's "obstacles"
+    std::string id;
+    pinsim_bounds bounds{};                           ///< its boundary's bounds at the state's time
+    pinsim_bounds sweep{};                            ///< ... over every pose its motion can take
+    std::vector<std::vector<Eigen::Vector2d>> rings;  ///< closed polylines, scene units
+  };
+  std::vector<Obstacle> obstacles;
+  pinsim_bounds bounds{};  ///< the whole set's bounds at the state's time
+  pinsim_bounds sweep{};   ///< ... over every pose
+};
+
 class BackendInstance {
  public:
   BackendInstance(std::shared_ptr<const LoadedPlugin> plugin, const State& initial,
@@ -81,6 +95,14 @@ class BackendInstance {
   /// Input `name` pressed or released at time t, between steps. Throws PluginError if the
   /// backend has no input() or refuses the event (an unknown name).
   void input(const std::string& name, bool pressed, double t);
+  /// True if the backend reports its obstacles' outlines (PINSIM_CAP_OUTLINES).
+  bool has_outline() const {
+    return plugin_->table->backend.outline != nullptr &&
+           (plugin_->table->capabilities & PINSIM_CAP_OUTLINES) != 0;
+  }
+  /// The obstacles' outlines and bounds for state s, within `tolerance` (scene units; <= 0:
+  /// the backend's default). Throws PluginError if the backend has no outline() or fails.
+  OutlineReport outline(const State& s, double tolerance) const;
   const LoadedPlugin& plugin() const { return *plugin_; }
 
  private:

@@ -25,7 +25,7 @@ PinballGame::PinballGame(const Scene& scene, PluginLoader& loader, GameRules rul
           input_names_.push_back(n);
       }
   pressed_.assign(input_names_.size(), false);
-  table_ = obstacles_view(scene_.backend_scene);
+  table_ = obstacles_view(sim_->backend(), initial_);
   if (!input_names_.empty() && !sim_->backend().has_input())
     throw PluginError(scene_.label + ": backend '" + sim_->backend().plugin().name() +
                       "' does not take live inputs (PINSIM_CAP_INPUTS), so it cannot be played");

@@ -75,7 +75,7 @@ class PinballGame {
   std::vector<GameInput> recorded_;
   std::vector<std::string> input_names_;
   std::vector<bool> pressed_;
-  ViewBox table_;  ///< the obstacles' bounds: below it the ball has drained
+  ViewBox table_;  ///< the obstacles' bounds (from the backend): below it the ball has drained
   int score_ = 0;
   int balls_left_ = 0;
   bool game_over_ = false;

@@ -80,9 +80,8 @@ struct ParticleLayout {
 
 // The world rectangle: the option's, else the scene's bounds grown by the runs' paths
 // (runs alone are padded a little).
-ViewBox picture_view(const RenderJob& job, const RenderOptions& opt) {
-  ViewBox view =
-      job.scene ? scene_view(*job.scene) : ViewBox{HUGE_VAL, HUGE_VAL, -HUGE_VAL, -HUGE_VAL};
+ViewBox picture_view(const RenderJob& job, const RenderOptions& opt, const Simulation* sim) {
+  ViewBox view = job.scene && sim ? scene_view(*job.scene, sim->backend()) : inverted_view();
   for (const auto& run : job.runs) add_run_to_view(run, view, 0.0);
   if (view.empty()) view = ViewBox{};
   if (!job.scene) view.pad(0.05);
@@ -285,7 +284,7 @@ PixelMap render_picture(const RenderJob& job, PluginLoader& loader, const Render
   std::unique_ptr<Simulation> sim;
   if (job.scene) sim = std::make_unique<Simulation>(*job.scene, loader);
   // What is shown, where and when.
-  const PixelMap map(picture_view(job, opt), opt.width);
+  const PixelMap map(picture_view(job, opt, sim.get()), opt.width);
   const double t = picture_time(job, opt);
   const ParticleLayout particles(job, map, t);
   // The layers from the bottom up, on a light background.

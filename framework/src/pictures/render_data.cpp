@@ -1,5 +1,7 @@
 #include "pictures/render_data.hpp"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -53,65 +55,6 @@ void read_csv(const fs::path& file, const std::string& header, std::size_t field
 }
 
 using Vec = Eigen::Vector2d;
-
-Vec vec(const json& j) { return Vec(j.at(0).get<double>(), j.at(1).get<double>()); }
-bool is_vec(const json& j, const char* key) {
-  return j.contains(key) && j[key].is_array() && j[key].size() == 2 && j[key][0].is_number();
-}
-
-/// A rigid placement p -> R(angle) p + offset.
-struct Pose {
-  double angle = 0;
-  Vec offset = Vec::Zero();
-  Vec operator()(const Vec& p) const {
-    const double c = std::cos(angle), s = std::sin(angle);
-    return Vec(c * p.x() - s * p.y(), s * p.x() + c * p.y()) + offset;
-  }
-  Pose then(const Pose& outer) const {  // outer(this(p))
-    Pose r;
-    r.angle = angle + outer.angle;
-    r.offset = outer(offset);
-    return r;
-  }
-};
-
-/// Adds points that bound a shape (discs as their four extreme points) placed by `pose`.
-void shape_points(const json& s, const Pose& outer, std::vector<Vec>& out) {
-  if (!s.is_object()) return;
-  Pose pose = outer;
-  if (s.contains("transform") && s["transform"].is_object()) {
-    Pose local;
-    const json& tr = s["transform"];
-    if (tr.contains("rotate") && tr["rotate"].is_number()) local.angle = tr["rotate"];
-    if (is_vec(tr, "translate")) local.offset = vec(tr["translate"]);
-    pose = local.then(outer);
-  }
-  const std::string type = s.value("type", "");
-  auto disc = [&](const Vec& c, double r) {
-    for (const Vec& d : {Vec(r, 0), Vec(-r, 0), Vec(0, r), Vec(0, -r)}) out.push_back(pose(c + d));
-  };
-  if (type == "half_plane") {
-    if (is_vec(s, "point")) out.push_back(pose(vec(s["point"])));
-    return;
-  }
-  if (is_vec(s, "center") && is_vec(s, "half_size")) {
-    const Vec c = vec(s["center"]), h = vec(s["half_size"]);
-    const double a = s.value("angle", 0.0), ca = std::cos(a), sa = std::sin(a);
-    for (const Vec& d :
-         {Vec(h.x(), h.y()), Vec(-h.x(), h.y()), Vec(h.x(), -h.y()), Vec(-h.x(), -h.y())})
-      out.push_back(pose(c + Vec(ca * d.x() - sa * d.y(), sa * d.x() + ca * d.y())));
-  } else if (is_vec(s, "center")) {
-    disc(vec(s["center"]), s.value("radius", 0.0) + 0.5 * s.value("thickness", 0.0));
-  }
-  if (is_vec(s, "a")) disc(vec(s["a"]), s.value("radius", s.value("radius_a", 0.0)));
-  if (is_vec(s, "b")) disc(vec(s["b"]), s.value("radius", s.value("radius_b", 0.0)));
-  if (s.contains("points") && s["points"].is_array())
-    for (const auto& p : s["points"])
-      if (p.is_array() && p.size() == 2) out.push_back(pose(vec(p)));
-  if (s.contains("shapes") && s["shapes"].is_array())
-    for (const auto& c : s["shapes"]) shape_points(c, pose, out);
-  if (s.contains("shape")) shape_points(s["shape"], pose, out);
-}
 
 }  // namespace
 
@@ -257,33 +200,37 @@ void ViewBox::pad(double frac) {
   y1 += e;
 }
 
-ViewBox obstacles_view(const json& backend_scene) {
-  ViewBox v = inverted_view();
-  std::vector<Vec> pts;
-  const json& obs = backend_scene.is_object() && backend_scene.contains("obstacles")
-                        ? backend_scene["obstacles"]
-                        : json::array();
-  for (const auto& o : obs) {
-    if (!o.is_object() || !o.contains("shape")) continue;
-    std::vector<Pose> poses{Pose{}};
-    if (o.contains("motion") && o["motion"].is_object()) {
-      const json& m = o["motion"];
-      if (m.value("type", "") == "flipper" && is_vec(m, "pivot")) {
-        poses.clear();
-        for (const char* k : {"rest_angle", "raised_angle"})
-          poses.push_back(Pose{m.value(k, 0.0), vec(m["pivot"])});
-      } else if (is_vec(m, "offset")) {
-        poses.push_back(Pose{0.0, vec(m["offset"])});
-      }
-    }
-    for (const Pose& p : poses) shape_points(o["shape"], p, pts);
+ViewBox united(ViewBox a, const ViewBox& b) {
+  if (!b.empty()) {
+    a.add(b.x0, b.y0);
+    a.add(b.x1, b.y1);
   }
-  for (const Vec& p : pts) v.add(p.x(), p.y());
+  return a;
+}
+
+ViewBox obstacles_view(const BackendInstance& backend, const State& state) {
+  ViewBox v = inverted_view();
+  if (!backend.has_outline()) {
+    spdlog::warn(
+        "backend '{}' does not report its obstacles' outlines (no PINSIM_CAP_OUTLINES): the "
+        "picture's view covers the particles only (--view sets another)",
+        backend.plugin().name());
+    return v;
+  }
+  const pinsim_bounds b = backend.outline(state, 0.0).sweep;
+  if (b.x0 <= b.x1 && b.y0 <= b.y1) {
+    v.add(b.x0, b.y0);
+    v.add(b.x1, b.y1);
+  }
   return v;
 }
 
-ViewBox scene_view(const Scene& scene) {
-  ViewBox v = obstacles_view(scene.backend_scene);
+ViewBox scene_view(const Scene& scene, const BackendInstance& backend) {
+  return scene_view(scene, obstacles_view(backend, scene.initial_state()));
+}
+
+ViewBox scene_view(const Scene& scene, const ViewBox& obstacles) {
+  ViewBox v = obstacles;
   const State s = scene.initial_state();
   for (Eigen::Index k = 0; k < s.x.cols(); ++k) {
     const double r = s.radius[k];

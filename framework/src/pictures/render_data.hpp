@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/plugin_instance.hpp"
 #include "core/scene.hpp"
 
 namespace pinsim {
@@ -68,15 +69,24 @@ struct ViewBox {
   void pad(double frac);
 };
 
-/// Bounds of the scene's particles and obstacle geometry (shapes' points, centres and
-/// radii, flipper pivots and swept poses, slider offsets), padded a little.
-ViewBox scene_view(const Scene& scene);
+/// Bounds of the scene's particles and of `obstacles`, padded a little (a unit box if
+/// both are empty).
+ViewBox scene_view(const Scene& scene, const ViewBox& obstacles);
+/// Bounds of the scene's particles and of the backend's obstacles over every pose their
+/// motion can take, padded a little.
+ViewBox scene_view(const Scene& scene, const BackendInstance& backend);
 
-/// Bounds of the obstacles' geometry alone (an empty, inverted box if there is none).
-ViewBox obstacles_view(const nlohmann::json& backend_scene);
+/// Bounds of the obstacles over every pose their motion can take, as the backend reports
+/// them (outline(), PINSIM_CAP_OUTLINES) for `state`; an empty, inverted box if there are
+/// none. A backend without outlines gets the empty box and a warning that the view covers
+/// the particles only.
+ViewBox obstacles_view(const BackendInstance& backend, const State& state);
 
 /// An empty box that any add() replaces.
 ViewBox inverted_view();
+
+/// The smallest box holding a and b (empty boxes add nothing).
+ViewBox united(ViewBox a, const ViewBox& b);
 
 /// Bounds of a run's trajectories (particle radius `r` added).
 void add_run_to_view(const RunData& run, ViewBox& view, double r);

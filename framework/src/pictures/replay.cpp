@@ -28,9 +28,9 @@ std::string hex_colour(const double c[3]) {
 }
 
 /// The zero contour of the moving obstacles at sampled times, in canvas pixels.
-json moving_frames(const BackendInstance& moving, const json& moving_scene, const PixelMap& map,
+json moving_frames(const BackendInstance& moving, const State& initial, const PixelMap& map,
                    double t_end, double fps) {
-  ViewBox region = obstacles_view(moving_scene);
+  ViewBox region = obstacles_view(moving, initial);
   if (region.empty()) return nullptr;
   region.pad(0.02);
   // The sub-grid shares the canvas scale and is aligned to its pixels.
@@ -65,7 +65,23 @@ json moving_frames(const BackendInstance& moving, const json& moving_scene, cons
 
 PixelMap write_replay(const RunData& run, const Scene* scene, PluginLoader& loader,
                       const ReplayOptions& opt, const fs::path& out) {
-  ViewBox view = scene ? scene_view(*scene) : inverted_view();
+  // The static obstacles' backend (all of them if none moves) and the moving ones'.
+  std::unique_ptr<BackendInstance> be, mb;
+  json mov = nullptr;
+  if (scene) {
+    mov = moving_obstacles(scene->backend_scene);
+    be =
+        make_backend(*scene, loader,
+                     mov.is_null() ? scene->backend_scene : static_obstacles(scene->backend_scene));
+    if (!mov.is_null()) mb = make_backend(*scene, loader, mov);
+  }
+  ViewBox view = inverted_view();
+  if (scene) {
+    const State s = scene->initial_state();
+    ViewBox obstacles = obstacles_view(*be, s);
+    if (mb) obstacles = united(obstacles, obstacles_view(*mb, s));
+    view = scene_view(*scene, obstacles);
+  }
   add_run_to_view(run, view, 0.0);
   if (view.empty()) view = ViewBox{};
   if (!scene) view.pad(0.05);
@@ -85,17 +101,11 @@ PixelMap write_replay(const RunData& run, const Scene* scene, PluginLoader& load
   std::optional<State> s0;
   if (scene) {
     s0 = scene->initial_state();
-    const json stat = static_obstacles(scene->backend_scene);
-    const json mov = moving_obstacles(scene->backend_scene);
-    auto be = make_backend(*scene, loader, mov.is_null() ? scene->backend_scene : stat);
     if (be->has_distance()) {
       const FieldGrid g = sample_field(
           [&](double x, double y) { return be->distance(x, y, 0.0, nullptr); }, map, 1);
       draw_field(cr, map, g, contour_spacing(view));
-      if (!mov.is_null()) {
-        auto mb = make_backend(*scene, loader, mov);
-        moving = moving_frames(*mb, mov, map, t_end, opt.obstacle_fps);
-      }
+      if (mb && mb->has_distance()) moving = moving_frames(*mb, *s0, map, t_end, opt.obstacle_fps);
     }
   }
   cairo_destroy(cr);

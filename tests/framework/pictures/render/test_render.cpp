@@ -14,6 +14,7 @@
 #include <nlohmann/json.hpp>
 #include <regex>
 
+#include "core/simulation.hpp"
 #include "pictures/render_data.hpp"
 #include "test_support.hpp"
 
@@ -101,6 +102,42 @@ TEST_CASE("render: a scene as PNG shows the obstacles, the field and the ball") 
   // The zero contour is drawn sharp and dark: just outside the disc's rim.
   const auto rim = png.rgb(px(0.5), py(0.3 + 0.15) - 1);
   CHECK(rim[0] < 80);
+}
+
+TEST_CASE("render: a backend without outlines still draws its field; the view fits the particles") {
+  const fs::path dir = test::temp_dir("render-no-outline");
+  test::write_file(dir / "scene.json", R"({"plugin_path": [")" PINSIM_TEST_FIXTURE_DIR R"("],
+    "time": {"dt": 0.01, "duration": 0.1}, "backend": {"name": "disc_backend"},
+    "particles": [{"x": [0.0, 0.0], "radius": 0.05}, {"x": [1.0, 1.0], "radius": 0.05}],
+    "forces": []})");
+  const fs::path out = dir / "scene.png";
+  const auto r =
+      pinsim_cli("render " + (dir / "scene.json").string() + " --width 200 --out " + out.string());
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  CHECK(r.output.find("does not report its obstacles' outlines") != std::string::npos);
+  CHECK(r.output.find("PINSIM_CAP_OUTLINES") != std::string::npos);
+  Png png(out);
+  REQUIRE(png.ok());
+  // the particles' box -0.05..1.05, padded: square, the disc about (0.5, 0.5) in the middle
+  CHECK(png.width() == 200);
+  CHECK(png.height() == 200);
+  CHECK(png.is_dark(100, 100));
+  CHECK(png.is_light(100, 20));
+}
+
+TEST_CASE("render: the view is the backend's outline bounds and the particles") {
+  // box_ball.json: the inside of the unit box bounds everything: 0..1 padded by 3 %
+  const fs::path out = test::temp_dir("render-view") / "scene.png";
+  const auto r = pinsim_cli("-q render " + kScene + " --width 412 --out " + out.string());
+  REQUIRE(r.code == 0);
+  Png png(out);
+  REQUIRE(png.ok());
+  CHECK(png.width() == 412);
+  CHECK(png.height() == 412);
+  // the box's wall (dark, inside the obstacle) fills the 3 % margin; free space inside
+  CHECK(png.is_dark(2, 206));
+  CHECK(png.is_light(140, 130));
 }
 
 TEST_CASE("render: a run as PNG and SVG, with its path and contacts") {
@@ -277,7 +314,9 @@ TEST_CASE(
   const double bx = recording["ball"][0], by = recording["ball"][1];
   // The window's mapping: the scene view (see `render`), 400 pixels across; recompute it.
   const Scene scene = load_scene(table);
-  const PixelMap map(scene_view(scene), 400);
+  PluginLoader loader(plugin_search_dirs(scene.plugin_path));
+  const Simulation sim(scene, loader);
+  const PixelMap map(scene_view(scene, sim.backend()), 400);
   CHECK(png.height() == map.height);
   CHECK(png.is_red(static_cast<int>(map.px(bx)), static_cast<int>(map.py(by))));
   CHECK(png.is_dark(static_cast<int>(map.px(0.22)), static_cast<int>(map.py(0.72))));  // bumper
