@@ -26,19 +26,17 @@ void add_slurm_options(CLI::App* c, SlurmArgs& a) {
   c->add_flag("--no-wait", a.no_wait, "With --slurm: print the job id and return")->group(g);
   c->add_flag("--resume", a.request.resume,
               "With --slurm: follow the shards still queued and resubmit only those without a "
-              "result, then merge. bench and stress without --slurm: continue an interrupted "
-              "sweep from OUT/TOOL.partial.csv, running only the points not in it")
+              "result, then merge")
       ->group(g);
 }
 
-void check_slurm_options(const CLI::App* c, const SlurmArgs& a, bool shard_given, bool sweep) {
+void check_slurm_options(const CLI::App* c, const SlurmArgs& a, bool shard_given) {
   if (a.slurm && shard_given)
     throw InputError("--slurm runs every shard itself: drop --shard (use --shards N)");
   if (a.slurm) return;
   for (const char* o : {"--shards", "--partition", "--time", "--mem", "--cpus", "--sbatch-arg",
                         "--no-wait", "--resume"})
-    if (c->count(o) && !(sweep && std::string(o) == "--resume"))
-      throw InputError(std::string(o) + " needs --slurm");
+    if (c->count(o)) throw InputError(std::string(o) + " needs --slurm");
 }
 
 std::filesystem::path self_exe() { return std::filesystem::read_symlink("/proc/self/exe"); }

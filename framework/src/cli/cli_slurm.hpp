@@ -22,10 +22,8 @@ struct SlurmArgs {
 void add_slurm_options(CLI::App* c, SlurmArgs& a);
 
 /// Throws InputError (exit 2) if a Slurm option is given without --slurm, or --slurm
-/// together with --shard (`shard_given`). With `sweep`, --resume alone is allowed: it
-/// continues an interrupted sweep from its partial CSV (sweep::drive).
-void check_slurm_options(const CLI::App* c, const SlurmArgs& a, bool shard_given,
-                         bool sweep = false);
+/// together with --shard (`shard_given`).
+void check_slurm_options(const CLI::App* c, const SlurmArgs& a, bool shard_given);
 
 /// Runs `job` on Slurm (see slurm::run), then merges the shards into `job.out` exactly as
 /// `pinsim merge` does and prints the Slurm overhead. Returns the exit code: 0, 1 (a shard

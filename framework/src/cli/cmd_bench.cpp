@@ -6,6 +6,7 @@
 
 #include "cli_slurm.hpp"
 #include "commands.hpp"
+#include "core/scene_error.hpp"
 #include "core/stop_signals.hpp"
 #include "tools/bench.hpp"
 
@@ -14,6 +15,7 @@ namespace {
 
 struct BenchArgs {
   std::string config, out = "out/bench", shard = "0/1";
+  bool resume = false;
   int repeats = -1;
   SlurmArgs slurm;
 };
@@ -38,13 +40,18 @@ void add_bench_command(CLI::App& app) {
   c->add_option("--out,-o", a->out, "Output folder for bench.csv and figures (default out/bench)");
   c->add_option("--shard", a->shard, "Run only every N-th point: i/N, 0 <= i < N (default 0/1)");
   c->add_option("--repeats", a->repeats, "Timed repeats per point (default: the config's, or 3)");
+  c->add_flag("--continue", a->resume,
+              "Continue an interrupted run in --out from its partial CSV: run only the points "
+              "not in it, then write the whole table");
   add_slurm_options(c, a->slurm);
   c->callback([a, c] {
-    check_slurm_options(c, a->slurm, c->count("--shard") > 0, true);
+    check_slurm_options(c, a->slurm, c->count("--shard") > 0);
+    if (a->slurm.slurm && a->resume)
+      throw InputError("--continue is for a run without --slurm (with it: --resume)");
     if (a->slurm.slurm) throw CLI::RuntimeError(bench_on_slurm(*a));
     bench::Options o;
     o.config = a->config;
-    o.resume = a->slurm.request.resume;
+    o.resume = a->resume;
     install_stop_handlers();
     o.out = a->out;
     o.shard = sweep::parse_shard(a->shard);

@@ -177,8 +177,8 @@ Body grid_blob(const nlohmann::json& spec, const Loc& at, ParticleList& out) {
                  ny = read_count_min(spec, "ny", 4, 2, at);
   // the same bound on the particles of a grid as on those of any other body
   if (nx * ny > 1000000)
-    throw(at / "ny").error("nx * ny = " + std::to_string(nx * ny) +
-                           " particles, more than the 1000000 a body may have");
+    (at / "ny").fail("nx * ny = " + std::to_string(nx * ny) +
+                     " particles, more than the 1000000 a body may have");
   const double h = read_number_or(spec, "spacing", 0.1, at);
   if (!(h > 0.0)) (at / "spacing").fail("must be > 0 (scene units)");
   const ParticleOptions o = read_particle_options(spec, nx * ny, at, out);

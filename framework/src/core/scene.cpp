@@ -136,10 +136,10 @@ void read_particles_and_bodies(const nlohmann::json& d, const Loc& root, Scene& 
       for (std::size_t k = before; k < s.particles.size(); ++k)
         if (!(std::abs(s.particles.x[k].x()) <= kMaxCoordinate &&
               std::abs(s.particles.x[k].y()) <= kMaxCoordinate))
-          ((root / "bodies")[i]).fail(
-              "puts its particle " + std::to_string(k - before) + " at (" +
-              num(s.particles.x[k].x()) + ", " + num(s.particles.x[k].y()) +
-              "), beyond the coordinate limit of " + num(kMaxCoordinate) + " in magnitude");
+          ((root / "bodies")[i])
+              .fail("puts its particle " + std::to_string(k - before) + " at (" +
+                    num(s.particles.x[k].x()) + ", " + num(s.particles.x[k].y()) +
+                    "), beyond the coordinate limit of " + num(kMaxCoordinate) + " in magnitude");
       for (const auto& other : s.bodies)
         if (!b.name.empty() && other.name == b.name)
           ((root / "bodies")[i] / "name").fail("a body named '" + b.name + "' already exists");

@@ -41,16 +41,15 @@ std::size_t max_particles() {
 void check_particle_count(std::size_t existing, uint64_t adding, const Loc& at) {
   const std::size_t limit = max_particles();
   if (adding > limit || existing > limit - adding)
-    at.fail(std::to_string(adding) + " particles here make " +
-                   std::to_string(existing + adding) + ", more than the limit of " +
-                   std::to_string(limit) +
-                   " particles in a scene ($PINSIM_MAX_PARTICLES raises it)");
+    at.fail(std::to_string(adding) + " particles here make " + std::to_string(existing + adding) +
+            ", more than the limit of " + std::to_string(limit) +
+            " particles in a scene ($PINSIM_MAX_PARTICLES raises it)");
 }
 
 void check_mass(double m, const Loc& at) {
   if (!(m >= kMinMass && m <= kMaxMass))
     at.fail("must be between " + num(kMinMass) + " and " + num(kMaxMass) +
-                   " (so that 1/m and m v^2 stay finite), got " + exact(m));
+            " (so that 1/m and m v^2 stay finite), got " + exact(m));
 }
 
 void check_position(const Eigen::Vector2d& x, const Loc& at) {

@@ -357,12 +357,12 @@ std::map<std::size_t, std::vector<std::string>> finished_points(const fs::path& 
   if (!m)
     throw InputError(partial.string() + ": no manifest " +
                      manifest_path(partial).filename().string() +
-                     " beside it; remove it, or run without --resume");
+                     " beside it; remove it, or run without --continue");
   if (m->tool != want.tool || m->sweep != want.sweep || m->shard.index != want.shard.index ||
       m->shard.count != want.shard.count || m->points != want.points)
     throw InputError(partial.string() +
                      ": from a different sweep (another config, options or shard); remove it, "
-                     "or run without --resume");
+                     "or run without --continue");
   const Table t = Table::read(partial);
   for (const auto& r : t.rows)
     if (!r.empty()) rows[std::strtoull(r[0].c_str(), nullptr, 10)] = r;
@@ -387,7 +387,7 @@ int drive(const Sweep& s, const Shard& shard, const fs::path& out, const std::st
     spdlog::info("{}: resuming: {} of this shard's {} points already done ({})", where, done.size(),
                  mine, partial.string());
   } else if (std::error_code ec; fs::exists(partial, ec)) {
-    spdlog::info("{}: replacing {} of an interrupted sweep (pass --resume to continue it)", where,
+    spdlog::info("{}: replacing {} of an interrupted sweep (pass --continue to continue it)", where,
                  partial.string());
   }
   spdlog::info("{}: {} points, this shard ({}/{}) runs {}", where, s.points, shard.index,
@@ -407,15 +407,17 @@ int drive(const Sweep& s, const Shard& shard, const fs::path& out, const std::st
     // Every finished point on disk at once, so an interrupted sweep loses none.
     write_shard(t, partial, m);
   }
+  // A stopped sweep never writes its result, even when the signal came during its last
+  // point: a cancelled shard is one without a result, and --continue completes it.
   if (sig == 0) sig = stop.load();
-  if (sig != 0 && t.rows.size() < mine) {
+  if (sig != 0) {
     write_shard(t, partial, m);
     std::string again = "pinsim " + s.tool + " " + where + " --out " + out.string();
     if (shard.count > 1)
       again += " --shard " + std::to_string(shard.index) + "/" + std::to_string(shard.count);
     spdlog::warn(
         "{}: stopped by {} after {} of this shard's {} points; the finished points are in {} "
-        "(with its manifest); continue with: {} --resume",
+        "(with its manifest); continue with: {} --continue",
         where, signal_name(sig), t.rows.size(), mine, partial.string(), again);
     return sig;
   }

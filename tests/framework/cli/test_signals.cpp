@@ -77,7 +77,7 @@ TEST_CASE("signals: run stops after the current step with a summary saying so") 
   }
 }
 
-TEST_CASE("signals: bench keeps its finished points and --resume continues from them") {
+TEST_CASE("signals: bench keeps its finished points and --continue goes on from them") {
   const fs::path dir = test::temp_dir("sig-bench");
   test::write_file(dir / "bench.json", oscillator_sweep(true));
   const fs::path out = dir / "out";
@@ -99,11 +99,11 @@ TEST_CASE("signals: bench keeps its finished points and --resume continues from 
                       " of this shard's 20 points; the finished points are in " +
                       (out / "bench.partial.csv").string()) &&
                  Contains("continue with: pinsim bench " + (dir / "bench.json").string() +
-                          " --out " + out.string() + " --resume"));
+                          " --out " + out.string() + " --continue"));
 
-  // --resume runs only the points not done; the whole table ends up in bench.csv.
+  // --continue runs only the points not done; the whole table ends up in bench.csv.
   auto resumed = args;
-  resumed.push_back("--resume");
+  resumed.push_back("--continue");
   const pid_t again = test::spawn_pinsim(resumed, dir / "log2");
   CHECK(test::wait_pinsim(again) == 0);
   CHECK_THAT(
@@ -133,7 +133,7 @@ TEST_CASE("signals: stress on SIGINT keeps its finished points") {
   CHECK_THAT(
       test::read_file(dir / "log"),
       Contains("stopped by SIGINT after " + std::to_string(done) + " of this shard's 10 points") &&
-          Contains(" --shard 1/2 --resume"));
+          Contains(" --shard 1/2 --continue"));
 }
 
 TEST_CASE("signals: crosscheck stops its run and writes a report saying how far it got") {
