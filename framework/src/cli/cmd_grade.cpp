@@ -114,8 +114,10 @@ int grade_batch(const GradeArgs& a) {
       children.insert(start_child(argv, ChildOutput::Discard).pid);
       ++running;
     }
-    const pid_t done = wait_any_child();
+    // Until a stop signal is passed on, waiting returns 0 when one arrives.
+    const pid_t done = wait_any_child(forwarded != 0 ? nullptr : &stop_signal());
     if (done < 0) break;  // no child left: none can still be running
+    if (done == 0) continue;
     children.erase(done);
     --running;
   }

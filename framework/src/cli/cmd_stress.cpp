@@ -4,7 +4,7 @@
 
 #include "cli_slurm.hpp"
 #include "commands.hpp"
-#include "core/scene_error.hpp"
+#include "core/input_error.hpp"
 #include "core/stop_signals.hpp"
 #include "tools/stress.hpp"
 

@@ -5,8 +5,12 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstdio>
 #include <stdexcept>
+#include <thread>
+
+#include "core/input_error.hpp"
 
 namespace pinsim {
 
@@ -55,11 +59,13 @@ int wait_child(pid_t pid) {
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-pid_t wait_any_child() {
+pid_t wait_any_child(const std::atomic<int>* stop) {
   int status = 0;
   for (;;) {
-    const pid_t pid = ::wait(&status);
-    if (pid >= 0 || errno != EINTR) return pid;
+    const pid_t pid = ::waitpid(-1, &status, stop != nullptr ? WNOHANG : 0);
+    if (pid > 0 || (pid < 0 && errno != EINTR)) return pid;
+    if (stop != nullptr && stop->load() != 0) return 0;
+    if (pid == 0) std::this_thread::sleep_for(std::chrono::milliseconds(20));
   }
 }
 

@@ -5,6 +5,7 @@
 
 #include <sys/types.h>
 
+#include <atomic>
 #include <string>
 #include <vector>
 
@@ -31,7 +32,8 @@ Child start_child(const std::vector<std::string>& argv, ChildOutput output);
 /// Waits for child `pid`; its exit code, or -1 if it did not exit normally.
 int wait_child(pid_t pid);
 
-/// Waits for any child of this process; its pid, or -1 when there is none left.
-pid_t wait_any_child();
+/// Waits for any child of this process; its pid, or -1 when there is none left. With `stop`,
+/// also returns 0 as soon as *stop is non-zero (a stop signal, polled every 20 ms).
+pid_t wait_any_child(const std::atomic<int>* stop = nullptr);
 
 }  // namespace pinsim
