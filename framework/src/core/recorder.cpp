@@ -79,7 +79,12 @@ Recorder::Recorder(const fs::path& dir, const Scene& scene, bool overwrite)
   }
   // The scene exactly as run (after --set overrides; the embedded one too), so that render,
   // replay and a rerun need nothing else from the run folder.
-  write_file_atomically(dir_ / "scene.json", scene.doc.dump(2) + "\n");
+  // Indented for reading, unless indentation would dwarf the content: it grows with the
+  // square of the nesting depth (a 40 KB scene nested 250 deep is 10 MB indented).
+  const std::string compact = scene.doc.dump();
+  std::string text = scene.doc.dump(2);
+  if (text.size() > 4 * compact.size() + 4096) text = compact;
+  write_file_atomically(dir_ / "scene.json", text + "\n");
   traj_ = std::make_unique<LineFile>(dir_ / "trajectory.csv", "t,particle,x,y,vx,vy\n");
   events_ = std::make_unique<LineFile>(
       dir_ / "events.csv", "t,particle,obstacle,other_particle,x,y,nx,ny,vn_before,vn_after\n");

@@ -10,7 +10,6 @@
 #include <stdexcept>
 #include <thread>
 
-#include "core/input_error.hpp"
 
 namespace pinsim {
 

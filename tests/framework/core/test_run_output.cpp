@@ -62,6 +62,33 @@ TEST_CASE("run output: trajectory, events and summary are written") {
   CHECK(summary["versions"]["plugins"]["gravity"].is_string());
 }
 
+TEST_CASE("run output: scene.json is indented, unless indentation would dwarf it") {
+  // A union nested 100 deep: indented, each of its ~400 lines would carry up to 400 spaces of
+  // indentation (quadratic in the depth); compact, it is a few kilobytes like its input.
+  std::string shape = R"({"type": "circle", "center": [0, -1], "radius": 0.5})";
+  for (int i = 0; i < 100; ++i) shape = R"({"type": "union", "shapes": [)" + shape + "]}";
+  const std::string nested = R"({"time": {"dt": 0.01, "duration": 0.05},
+    "particles": [{"x": [0, 0]}], "backend": {"name": "sdf"},
+    "obstacles": [{"id": "w", "shape": )" +
+                             shape + "}]}";
+  PluginLoader loader(plugin_search_dirs());
+  RunSettings rs;
+  rs.out = test::temp_dir("scene-json-nested");
+  REQUIRE(run_scene(parse_scene(nested, "nested.json", "."), loader, rs).exit_code == 0);
+  const std::string written = test::read_file(rs.out / "scene.json");
+  CHECK(written.size() < 2 * nested.size());
+  CHECK(written.find('\n') == written.size() - 1);  // one line
+  CHECK(nlohmann::json::parse(written) == parse_scene(nested, "nested.json", ".").doc);
+
+  rs.out = test::temp_dir("scene-json-flat");  // an ordinary scene stays readable
+  REQUIRE(run_scene(parse_scene(R"({"time": {"dt": 0.01, "duration": 0.05},
+    "particles": [{"x": [0, 0]}]})",
+                                "flat.json", "."),
+                    loader, rs)
+              .exit_code == 0);
+  CHECK_THAT(test::read_file(rs.out / "scene.json"), Contains("{\n  \"particles\": ["));
+}
+
 TEST_CASE("run output: an earlier run is not overwritten without --overwrite") {
   const auto dir = test::temp_dir("keep");
   test::write_file(dir / "trajectory.csv", "precious\n");
