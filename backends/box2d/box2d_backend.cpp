@@ -313,8 +313,6 @@ Box2dBackend::Box2dBackend(const CreateContext& ctx) {
 // tagged with the obstacle's index.
 void Box2dBackend::add_obstacles(const CreateContext& ctx, float threshold) {
   const double s = scale_;
-  const auto& obs_json =
-      ctx.scene.contains("obstacles") ? ctx.scene["obstacles"] : nlohmann::json::array();
   const BuildOptions bo = build_options(ctx, s);
   for (std::size_t k = 0; k < field_.size(); ++k) {
     const sdf::Obstacle& o = field_.obstacle(k);
@@ -332,8 +330,7 @@ void Box2dBackend::add_obstacles(const CreateContext& ctx, float threshold) {
     target.fd.restitutionThreshold = threshold;
     target.fd.density = 0.0f;
     target.fd.userData.pointer = tags_.size();  // tag index + 1
-    const std::vector<Piece> pieces =
-        build_pieces(obs_json[k]["shape"], ctx.context, path + ".shape", o.id, bo);
+    const std::vector<Piece> pieces = build_pieces(o.shape, ctx.context, path + ".shape", o.id, bo);
     for (const Piece& pc : pieces) add_piece(target, pc);
     obstacle_fixtures_.push_back(pieces.size());
   }

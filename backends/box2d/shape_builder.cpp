@@ -48,31 +48,25 @@ bool point_in_polygon(const Vec2& p, const std::vector<Vec2>& v) {
 
 class Builder {
  public:
-  Builder(std::string ctx, std::string id, const BuildOptions& opt)
-      : ctx_(std::move(ctx)), id_(std::move(id)), opt_(opt) {}
+  Builder(const sdf::ShapeTree& tree, std::string ctx, std::string id, const BuildOptions& opt)
+      : tree_(tree), ctx_(std::move(ctx)), id_(std::move(id)), opt_(opt) {}
 
   [[noreturn]] void unsupported(const std::string& path, const std::string& what) const {
     throw Error(ctx_ + ": " + path + ": unsupported by box2d (obstacle '" + id_ + "'): " + what);
   }
 
-  static Transform node_xform(const nlohmann::json& j) {
-    Transform x;
-    if (j.contains("transform") && !j["transform"].is_null()) {
-      const auto& tr = j["transform"];
-      if (tr.contains("translate"))
-        x.t = Vec2(tr["translate"][0].get<double>(), tr["translate"][1].get<double>());
-      x.r = Rotation::from_angle(tr.value("rotate", 0.0));
-    }
-    return x;
+  /// The node's own transform (the identity if it has none).
+  static Transform node_xform(const sdf::ShapeNode& n) {
+    return n.transformed ? n.tf : Transform{};
   }
-  static Vec2 v2(const nlohmann::json& j, const char* k) {
-    return {j[k][0].get<double>(), j[k][1].get<double>()};
+  /// The path of shape k below `path` (a union's "shapes").
+  static std::string shapes_path(const std::string& path, uint32_t k) {
+    return path + ".shapes[" + std::to_string(k) + "]";
   }
 
   /// Corners of a box (counter-clockwise) in the parent frame.
   static std::vector<Vec2> box_corners(const Transform& x, const Vec2& c, const Vec2& h,
-                                       double angle) {
-    const Rotation box = Rotation::from_angle(angle);
+                                       const Rotation& box) {
     std::vector<Vec2> out;
     for (const Vec2& q :
          {Vec2(-h.x(), -h.y()), Vec2(h.x(), -h.y()), Vec2(h.x(), h.y()), Vec2(-h.x(), h.y())})
@@ -116,28 +110,29 @@ class Builder {
   }
 
   /// A solid shape (not a container), transform `x` already includes the node's own.
-  void solid(const nlohmann::json& j, const Transform& parent, const std::string& path) {
-    const Transform x = parent.compose(node_xform(j));
-    const std::string type = j["type"].get<std::string>();
-    if (type == "circle") {
-      circle(x.apply(v2(j, "center")), j["radius"].get<double>());
-    } else if (type == "box") {
-      polygon(box_corners(x, v2(j, "center"), v2(j, "half_size"), j.value("angle", 0.0)), 0.0,
-              path);
-    } else if (type == "rounded_box") {
-      // Box2D polygons carry a rounding radius: the inner box plus radius corner_radius is
-      // exactly the rounded box.
-      const double cr = j["corner_radius"].get<double>();
-      const Vec2 h = v2(j, "half_size") - Vec2(cr, cr);
+  void solid(uint32_t i, const Transform& parent, const std::string& path) {
+    using sdf::ShapeType;
+    const sdf::ShapeNode& n = tree_.node(i);
+    const Transform x = parent.compose(node_xform(n));
+    const Rotation orient{n.ca, n.sa};
+    if (n.type == ShapeType::kCircle) {
+      circle(x.apply(n.c), n.r0);
+    } else if (n.type == ShapeType::kBox) {
+      polygon(box_corners(x, n.c, n.b, orient), 0.0, path);
+    } else if (n.type == ShapeType::kRoundedBox) {
+      // Box2D polygons carry a rounding radius: the inner box (half size minus the corner
+      // radius) plus radius corner_radius is exactly the rounded box.
+      const double cr = n.r0;
+      const Vec2 h = n.b;
       if (!(h.x() > 0.0 && h.y() > 0.0))
         unsupported(path,
                     "rounded_box with corner_radius = min(half_size) is a capsule or disc; "
                     "write it as one");
-      polygon(box_corners(x, v2(j, "center"), h, j.value("angle", 0.0)), cr, path);
-    } else if (type == "capsule") {
+      polygon(box_corners(x, n.c, h, orient), cr, path);
+    } else if (n.type == ShapeType::kCapsule) {
       // An edge with rounding radius r is exactly the capsule (radius 0: a two-sided wall).
-      const Vec2 a = x.apply(v2(j, "a")), b = x.apply(v2(j, "b"));
-      const double r = j["radius"].get<double>();
+      const Vec2 a = x.apply(tree_.ends(n).first), b = x.apply(tree_.ends(n).second);
+      const double r = n.r0;
       if ((b - a).norm() == 0.0) {
         if (r > 0.0)
           circle(a, r);
@@ -146,11 +141,11 @@ class Builder {
       } else {
         edge(a, b, r);
       }
-    } else if (type == "tapered_capsule") {
+    } else if (n.type == ShapeType::kTaperedCapsule) {
       // Two discs and the quad between their outer tangent points (iq's uneven capsule:
       // side normal (k1, k0) in the frame x across, y along a->b, k0 = (ra - rb)/h).
-      const Vec2 a = x.apply(v2(j, "a")), b = x.apply(v2(j, "b"));
-      const double ra = j["radius_a"].get<double>(), rb = j["radius_b"].get<double>();
+      const Vec2 a = x.apply(tree_.ends(n).first), b = x.apply(tree_.ends(n).second);
+      const double ra = n.r0, rb = n.r1;
       const double h = (b - a).norm();
       const Vec2 ey = (b - a) / h, ex(ey.y(), -ey.x());
       const double k0 = (ra - rb) / h, k1 = std::sqrt(1.0 - k0 * k0);
@@ -167,16 +162,15 @@ class Builder {
       } else {
         polygon(quad, 0.0, path);
       }
-    } else if (type == "polygon") {
+    } else if (n.type == ShapeType::kPolygon) {
       std::vector<Vec2> pts;
-      for (const auto& p : j["points"])
-        pts.push_back(x.apply(Vec2(p[0].get<double>(), p[1].get<double>())));
+      for (const Vec2& p : tree_.polygon(n)) pts.push_back(x.apply(p));
       polygon(pts, 0.0, path);
-    } else if (type == "half_plane") {
+    } else if (n.type == ShapeType::kHalfPlane) {
       // A long one-sided edge, colliding on the normal's side (Box2D: right of a->b).
-      const Vec2 n = x.r.apply(v2(j, "normal").normalized());
-      const Vec2 p0 = x.apply(v2(j, "point"));
-      const Vec2 along(-n.y(), n.x());
+      const Vec2 normal = x.r.apply(n.b);  // the unit normal (the reader normalized it)
+      const Vec2 p0 = x.apply(n.c);
+      const Vec2 along(-normal.y(), normal.x());
       const Vec2 foot = p0 + along * along.dot(opt_.centre - p0);
       const double L = opt_.half_plane_extent;
       Piece p;
@@ -184,53 +178,50 @@ class Builder {
       p.v = {foot + L * along, foot - L * along};  // right of a->b = n
       p.one_sided = true;
       out.push_back(p);
-    } else if (type == "union") {
-      for (std::size_t k = 0; k < j["shapes"].size(); ++k)
-        solid(j["shapes"][k], x, path + ".shapes[" + std::to_string(k) + "]");
-    } else if (type == "inside") {
-      container(j["shape"], x, path + ".shape");
-    } else if (type == "arc") {
+    } else if (n.type == ShapeType::kUnion) {
+      for (uint32_t k = 0; k < n.count; ++k) solid(tree_.child(n, k), x, shapes_path(path, k));
+    } else if (n.type == ShapeType::kInside) {
+      container(tree_.child(n, 0), x, path + ".shape");
+    } else if (n.type == ShapeType::kArc) {
       unsupported(path,
                   "an arc is a curved band with a concave side; Box2D 2.4.1 has no "
                   "curved shape but the circle");
-    } else if (type == "intersection") {
+    } else if (n.type == ShapeType::kIntersection) {
       unsupported(path,
                   "an intersection (max of SDFs) is not a set of Box2D fixtures; write "
                   "the resulting shape as a polygon");
-    } else if (type == "subtraction") {
+    } else {  // ShapeType::kSubtraction
       unsupported(path,
                   "a subtraction leaves a boundary Box2D fixtures cannot express (concave "
                   "and curved where a curved shape is removed); write the result as a "
                   "polygon");
-    } else {
-      unsupported(path, "shape type '" + type + "'");
     }
   }
 
   /// Closed counter-clockwise outline of a leaf of a container's shape.
-  void outline(const nlohmann::json& j, const Transform& parent, const std::string& path,
+  void outline(uint32_t i, const Transform& parent, const std::string& path,
                std::vector<std::vector<Vec2>>& loops) {
-    const Transform x = parent.compose(node_xform(j));
-    const std::string type = j["type"].get<std::string>();
-    if (type == "union") {
-      for (std::size_t k = 0; k < j["shapes"].size(); ++k)
-        outline(j["shapes"][k], x, path + ".shapes[" + std::to_string(k) + "]", loops);
-    } else if (type == "box") {
-      loops.push_back(box_corners(x, v2(j, "center"), v2(j, "half_size"), j.value("angle", 0.0)));
-    } else if (type == "polygon") {
+    using sdf::ShapeType;
+    const sdf::ShapeNode& node = tree_.node(i);
+    const Transform x = parent.compose(node_xform(node));
+    if (node.type == ShapeType::kUnion) {
+      for (uint32_t k = 0; k < node.count; ++k)
+        outline(tree_.child(node, k), x, shapes_path(path, k), loops);
+    } else if (node.type == ShapeType::kBox) {
+      loops.push_back(box_corners(x, node.c, node.b, Rotation{node.ca, node.sa}));
+    } else if (node.type == ShapeType::kPolygon) {
       std::vector<Vec2> pts;
-      for (const auto& p : j["points"])
-        pts.push_back(x.apply(Vec2(p[0].get<double>(), p[1].get<double>())));
+      for (const Vec2& p : tree_.polygon(node)) pts.push_back(x.apply(p));
       if (signed_area2(pts) < 0.0) std::reverse(pts.begin(), pts.end());
       loops.push_back(pts);
-    } else if (type == "circle") {
+    } else if (node.type == ShapeType::kCircle) {
       if (opt_.curve_segments <= 0)
         unsupported(path,
                     "the inside of a circle is a concave curved wall; Box2D can only "
                     "approximate it by segments (set the box2d parameter curve_segments, "
                     "e.g. 256, to accept that approximation)");
-      const Vec2 c = x.apply(v2(j, "center"));
-      const double r = j["radius"].get<double>();
+      const Vec2 c = x.apply(node.c);
+      const double r = node.r0;
       const int n = opt_.curve_segments;
       std::vector<Vec2> v;
       for (int k = 0; k < n; ++k) {
@@ -239,7 +230,7 @@ class Builder {
       }
       loops.push_back(v);
     } else {
-      unsupported(path, "'inside' of a " + type +
+      unsupported(path, std::string("'inside' of a ") + sdf::ShapeTree::type_name(node.type) +
                             " (a container wall Box2D cannot express; supported: box, polygon, "
                             "circle with curve_segments, and unions of those)");
     }
@@ -247,9 +238,9 @@ class Builder {
 
   /// The ball lives inside `j`: the boundary of the union of its leaves as chain loops,
   /// wound clockwise so that Box2D's one-sided chains collide from the inside.
-  void container(const nlohmann::json& j, const Transform& x, const std::string& path) {
+  void container(uint32_t i, const Transform& x, const std::string& path) {
     std::vector<std::vector<Vec2>> loops;
-    outline(j, x, path, loops);
+    outline(i, x, path, loops);
     struct Seg {
       Vec2 a, b;
     };
@@ -321,6 +312,7 @@ class Builder {
   std::vector<Piece> out;
 
  private:
+  const sdf::ShapeTree& tree_;
   std::string ctx_, id_;
   BuildOptions opt_;
 };
@@ -401,11 +393,11 @@ std::vector<std::vector<Vec2>> convex_decompose(const std::vector<Vec2>& ccw, in
   return out;
 }
 
-std::vector<Piece> build_pieces(const nlohmann::json& shape, const std::string& ctx,
+std::vector<Piece> build_pieces(const sdf::ShapeTree& shape, const std::string& ctx,
                                 const std::string& path, const std::string& id,
                                 const BuildOptions& opt) {
-  Builder b(ctx, id, opt);
-  b.solid(shape, Transform{}, path);
+  Builder b(shape, ctx, id, opt);
+  b.solid(shape.root(), Transform{}, path);
   return std::move(b.out);
 }
 

@@ -1,14 +1,16 @@
-// ShapeBuilder: turns one obstacle's "shape" JSON (the sdf backend's format, already
-// validated by sdf::ObstacleField) into Box2D-expressible pieces in scene units, in the
-// obstacle's own frame: circles, convex polygons of at most b2_maxPolygonVertices (concave
-// polygons decomposed), capsule edges and chains. Features Box2D cannot express are errors
-// naming the obstacle, the JSON path and the feature.
+// ShapeBuilder: turns one obstacle's shape, as the one obstacle reader (sdf::ShapeTree,
+// inside sdf::ObstacleField) compiled and validated it, into Box2D-expressible pieces in
+// scene units, in the obstacle's own frame: circles, convex polygons of at most
+// b2_maxPolygonVertices (concave polygons decomposed), capsule edges and chains. Features Box2D
+// cannot express are errors naming the obstacle, the JSON path and the feature.
 #pragma once
 
 #include <pinsim/plugin.hpp>
 #include <pinsim/transform.hpp>
 #include <string>
 #include <vector>
+
+#include "shape.hpp"
 
 namespace pinsim::box2d {
 
@@ -29,9 +31,9 @@ struct BuildOptions {
   Vec2 centre{0.0, 0.0};           ///< where half-plane edges are centred (the scene's middle)
 };
 
-/// Builds the pieces of obstacle `id` from its validated shape JSON at `path`
+/// Builds the pieces of obstacle `id` from its shape tree, whose JSON path is `path`
 /// (e.g. "obstacles[3].shape"); throws pinsim::Error "ctx: path: ... unsupported by box2d".
-std::vector<Piece> build_pieces(const nlohmann::json& shape, const std::string& ctx,
+std::vector<Piece> build_pieces(const sdf::ShapeTree& shape, const std::string& ctx,
                                 const std::string& path, const std::string& id,
                                 const BuildOptions& opt);
 

@@ -47,6 +47,7 @@ bool non_negative(double x) { return x >= 0.0; }
 struct TreeParts {
   std::vector<Vec2>& verts;                            ///< polygon vertices
   std::vector<uint32_t>& children;                     ///< child node indices
+  std::vector<std::pair<Vec2, Vec2>>& ends;            ///< capsule ends as given
   std::function<uint32_t(const JsonIn&)> parse_child;  ///< parses a node one level deeper
 };
 
@@ -102,10 +103,12 @@ void parse_rounded_box(const JsonIn& j, ShapeNode& n, TreeParts&) { parse_box_li
 // capsule: ends a, b and radius >= 0; evaluated as a rounded box of half size
 // (|b - a| / 2, 0) about the midpoint, rotated to the axis: the distance to the segment,
 // minus the radius.
-void parse_capsule(const JsonIn& j, ShapeNode& n, TreeParts&) {
+void parse_capsule(const JsonIn& j, ShapeNode& n, TreeParts& tree) {
   j.only({"type", "transform", "a", "b", "radius"});
   n.type = ShapeType::kCapsule;
   const Vec2 a = j.vec2("a"), ab = j.vec2("b") - a;
+  n.first = static_cast<uint32_t>(tree.ends.size());
+  tree.ends.emplace_back(a, j.vec2("b"));
   n.r0 = j.number_if("radius", non_negative, "must be >= 0");
   const double len = ab.norm();
   n.c = a + 0.5 * ab;
@@ -118,11 +121,13 @@ void parse_capsule(const JsonIn& j, ShapeNode& n, TreeParts&) {
 
 // tapered_capsule: ends a, b with radii radius_a, radius_b, neither end disc containing
 // the other; stored in iq's form (axis, a and b constants).
-void parse_tapered_capsule(const JsonIn& j, ShapeNode& n, TreeParts&) {
+void parse_tapered_capsule(const JsonIn& j, ShapeNode& n, TreeParts& tree) {
   j.only({"type", "transform", "a", "b", "radius_a", "radius_b"});
   n.type = ShapeType::kTaperedCapsule;
   n.c = j.vec2("a");
   const Vec2 ab = j.vec2("b") - n.c;
+  n.first = static_cast<uint32_t>(tree.ends.size());
+  tree.ends.emplace_back(n.c, j.vec2("b"));
   n.r0 = j.number_if("radius_a", non_negative, "must be >= 0");
   n.r1 = j.number_if("radius_b", non_negative, "must be >= 0");
   n.h = ab.norm();
@@ -290,11 +295,15 @@ uint32_t ShapeTree::parse_node(const JsonIn& j, int depth) {
   const ShapeParser parse = find_shape_parser(type);
   if (!parse)
     j.fail("type", "unknown shape type '" + type + "' (expected " + shape_type_names() + ")");
-  TreeParts tree{verts_, children_,
+  TreeParts tree{verts_, children_, ends_,
                  [this, depth](const JsonIn& child) { return parse_node(child, depth + 1); }};
   parse(j, n, tree);
   nodes_.push_back(n);
   return static_cast<uint32_t>(nodes_.size() - 1);
+}
+
+const char* ShapeTree::type_name(ShapeType type) {
+  return kShapeParsers[static_cast<std::size_t>(type)].type.data();
 }
 
 Aabb ShapeTree::bounds_node(uint32_t i) const {

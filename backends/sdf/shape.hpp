@@ -77,7 +77,8 @@ struct ShapeNode {
   double r0 = 0.0, r1 = 0.0;  ///< radius / corner radius / radius_a, radius_b / arc half-thickness
   double h = 0.0;             ///< tapered capsule length; arc: sin of half aperture in r1...
   double k0 = 0.0, k1 = 0.0;  ///< precomputed constants (arc sin/cos, tapered a/b)
-  uint32_t first = 0, count = 0;  ///< children (into children_) or polygon vertices (verts_)
+  uint32_t first = 0, count = 0;  ///< children (children_), polygon vertices (verts_) or,
+                                  ///< capsules, the ends as given (ends_[first])
 };
 
 class ShapeTree {
@@ -127,6 +128,23 @@ class ShapeTree {
   Aabb boundary_bounds() const;
   /// Number of primitives (leaves).
   std::size_t primitives() const;
+
+  // The compiled tree, read-only, for builders of other representations of the same
+  // description (the box2d backend's fixtures), so that the scene's shapes have one reader.
+  /// The root node's index.
+  uint32_t root() const { return root_; }
+  /// Node i.
+  const ShapeNode& node(uint32_t i) const { return nodes_[i]; }
+  /// The index of child k of a union, intersection, subtraction or inside node.
+  uint32_t child(const ShapeNode& n, uint32_t k) const { return children_[n.first + k]; }
+  /// A polygon node's vertices, counter-clockwise (the scene's order, reversed if clockwise).
+  std::vector<Vec2> polygon(const ShapeNode& n) const {
+    return {verts_.begin() + n.first, verts_.begin() + n.first + n.count};
+  }
+  /// A capsule's or tapered capsule's ends a and b, as the scene gave them.
+  const std::pair<Vec2, Vec2>& ends(const ShapeNode& n) const { return ends_[n.first]; }
+  /// The scene's name of a shape type ("circle", "rounded_box", ...).
+  static const char* type_name(ShapeType type);
   /// The boundary as closed rings in the shape frame (see shape_outline.cpp): arcs within
   /// `tol` of the exact curve, half-planes cut to the convex polygon `clip` (shape frame).
   Rings outline(double tol, const Ring& clip) const;
@@ -146,6 +164,7 @@ class ShapeTree {
   std::vector<ShapeNode> nodes_;
   std::vector<uint32_t> children_;
   std::vector<Vec2> verts_;
+  std::vector<std::pair<Vec2, Vec2>> ends_;
   uint32_t root_ = 0;
   bool root_primitive_ = false;  ///< root is a primitive without a transform
 };

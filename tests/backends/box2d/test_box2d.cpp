@@ -5,6 +5,7 @@
 #include <string>
 
 #include "core/simulation.hpp"
+#include "obstacle_field.hpp"
 #include "shape_builder.hpp"
 #include "tools/crosscheck.hpp"
 
@@ -202,6 +203,59 @@ TEST_CASE("a bad contacts block is the same error on box2d as on sdf (one parser
   const std::string e = error_of(text);
   CHECK_THAT(e, Contains("bad.json: contacts.restitution: must be in [0, 1], got 1.5"));
   CHECK(e == error_of(on_sdf));
+}
+
+TEST_CASE("one obstacle reader: box2d and sdf give the same JSON-path errors") {
+  const std::string ball = R"({"x": [5, 5], "v": [1, 0], "mass": 1, "radius": 0.05})";
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {R"([{"id": "p", "shape": {"type": "polygon", "points": [[0, 0], [1, 0]]}}])",
+       "bad.json: obstacles[0].shape.points: need at least 3 points, got 2"},
+      {R"([{"id": "u", "shape": {"type": "union", "shapes": [{"type": "blob"}]}}])",
+       "bad.json: obstacles[0].shape.shapes[0].type: unknown shape type 'blob'"},
+      {R"([{"id": "b", "shape": {"type": "box", "center": [0, 0], "half_size": [1, 1], "angel": 1}}])",
+       "bad.json: obstacles[0].shape.angel: unknown key"},
+      {R"([{"id": "t", "shape": {"type": "inside", "shape": {"type": "tapered_capsule", "a": [0, 0], "b": [1, 0], "radius_a": 2, "radius_b": 0.1}}}])",
+       "bad.json: obstacles[0].shape.shape.b: need |radius_a - radius_b| < |b - a|"},
+      {R"([{"id": "f", "shape": {"type": "circle", "center": [0, 0], "radius": 1}, "motion": {"type": "flipper", "pivot": [0, 0]}}])",
+       "bad.json: obstacles[0].motion.rest_angle: required number is missing"},
+      {R"([{"id": "d", "shape": {"type": "circle", "center": [0, 0], "radius": 1}}, {"id": "d", "shape": {"type": "circle", "center": [3, 0], "radius": 1}}])",
+       "bad.json: obstacles[1].id: duplicate obstacle id \"d\""},
+  };
+  for (const auto& [obstacles, message] : cases) {
+    const std::string box2d = scene_text(obstacles, ball);
+    std::string sdf = box2d;
+    sdf.replace(sdf.find("\"box2d\""), 7, "\"sdf\"");
+    INFO(obstacles);
+    CHECK_THAT(error_of(box2d), Contains(message));
+    CHECK_THAT(error_of(sdf), Contains(message));
+  }
+}
+
+TEST_CASE("one obstacle reader: box2d builds its fixtures from the compiled shape tree") {
+  // a transformed union of every primitive Box2D expresses, and a clockwise polygon: the
+  // pieces come from the tree (ends as given, polygon counter-clockwise)
+  const nlohmann::json scene = nlohmann::json::parse(R"({"obstacles": [{"id": "all", "shape":
+    {"type": "union", "transform": {"translate": [1, 2], "rotate": 0.5}, "shapes": [
+      {"type": "circle", "center": [0, 0], "radius": 0.5},
+      {"type": "capsule", "a": [1, 0], "b": [2, 0], "radius": 0.1},
+      {"type": "polygon", "points": [[0, 3], [1, 4], [1, 3]]},
+      {"type": "rounded_box", "center": [3, 3], "half_size": [0.5, 0.4], "corner_radius": 0.1}]}}]})");
+  const sdf::ObstacleField field(scene, "t.json", {}, 0);
+  const auto pieces = box2d::build_pieces(field.obstacle(0).shape, "t.json", "obstacles[0].shape",
+                                          "all", box2d::BuildOptions{});
+  REQUIRE(pieces.size() == 4);
+  const Transform x{Rotation::from_angle(0.5), Vec2(1, 2)};
+  CHECK(pieces[0].kind == box2d::Piece::Kind::kCircle);
+  CHECK(pieces[0].v[0] == x.apply(Vec2(0, 0)));
+  CHECK(pieces[1].kind == box2d::Piece::Kind::kEdge);
+  CHECK(pieces[1].v[0] == x.apply(Vec2(1, 0)));
+  CHECK(pieces[1].v[1] == x.apply(Vec2(2, 0)));
+  CHECK(pieces[1].radius == 0.1);
+  CHECK(pieces[2].kind == box2d::Piece::Kind::kPolygon);
+  CHECK(pieces[2].v ==
+        std::vector<Vec2>{x.apply(Vec2(1, 3)), x.apply(Vec2(1, 4)), x.apply(Vec2(0, 3))});
+  CHECK(pieces[3].kind == box2d::Piece::Kind::kPolygon);
+  CHECK(pieces[3].radius == 0.1);
 }
 
 // Box2D 2.4.1 caps each step's travel at b2_maxTranslation = 2 units and would silently
