@@ -103,8 +103,9 @@ class ObstacleField {
   /// The default outline tolerance: 1e-3 of the larger side of finite_bounds() (1e-3 if
   /// that is empty).
   double default_outline_tolerance() const;
-  /// The rectangle unbounded obstacles (half-planes) are cut to: finite_bounds() and the
-  /// `extra` points, grown on every side by a tenth of its larger side (1 if that is 0).
+  /// The rectangle unbounded obstacles (half-planes) are cut to: finite_bounds(), the
+  /// half-planes' points and the `extra` points, grown on every side by a tenth of its
+  /// larger side (1 if that is 0).
   Ring outline_clip(const std::vector<Vec2>& extra) const;
 
  private:

@@ -67,6 +67,9 @@ double ObstacleField::default_outline_tolerance() const {
 Ring ObstacleField::outline_clip(const std::vector<Vec2>& extra) const {
   Aabb b = finite_bounds();
   for (const Vec2& p : extra) b.add(p);
+  std::vector<Vec2> anchors;
+  for (uint32_t k : static_) obs_[k].shape.add_half_plane_points(anchors);
+  for (const Vec2& p : anchors) b.add(p);
   if (b.empty()) b = Aabb{Vec2(-1.0, -1.0), Vec2(1.0, 1.0), true};
   const double size = std::max(b.hi.x() - b.lo.x(), b.hi.y() - b.lo.y());
   const double pad = size > 0.0 ? 0.1 * size : 1.0;

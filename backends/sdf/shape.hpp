@@ -148,6 +148,9 @@ class ShapeTree {
   /// The boundary as closed rings in the shape frame (see shape_outline.cpp): arcs within
   /// `tol` of the exact curve, half-planes cut to the convex polygon `clip` (shape frame).
   Rings outline(double tol, const Ring& clip) const;
+  /// Adds the point of every half-plane in the tree (shape frame): where the unbounded
+  /// parts are anchored, so that the rectangle they are cut to reaches them.
+  void add_half_plane_points(std::vector<Vec2>& out) const { add_points_node(root_, {}, out); }
 
  private:
   uint32_t parse_node(const JsonIn& j, int depth);
@@ -159,6 +162,7 @@ class ShapeTree {
   static Sdf eval_box(const ShapeNode& n, const Vec2& p);
   Aabb bounds_node(uint32_t i) const;
   Rings outline_node(uint32_t i, double tol, const Ring& clip, double frame) const;
+  void add_points_node(uint32_t i, const Transform& parent, std::vector<Vec2>& out) const;
   std::pair<double, double> segment_node(uint32_t i, const Vec2& a, const Vec2& b) const;
 
   std::vector<ShapeNode> nodes_;

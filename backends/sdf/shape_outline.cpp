@@ -22,6 +22,14 @@ Ring place(const Ring& local, const Vec2& o, const Vec2& ex, const Vec2& ey) {
 
 }  // namespace
 
+void ShapeTree::add_points_node(uint32_t i, const Transform& parent, std::vector<Vec2>& out) const {
+  const ShapeNode& n = nodes_[i];
+  const Transform x = n.transformed ? parent.compose(n.tf) : parent;
+  if (n.type == ShapeType::kHalfPlane) out.push_back(x.apply(n.c));
+  if (n.type >= ShapeType::kUnion)
+    for (uint32_t k = 0; k < n.count; ++k) add_points_node(children_[n.first + k], x, out);
+}
+
 Rings ShapeTree::outline(double tol, const Ring& clip) const {
   return outline_node(root_, tol, clip, 0.0);
 }

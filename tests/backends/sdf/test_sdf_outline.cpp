@@ -1,6 +1,7 @@
 // The sdf backend's outline(): rings on the exact boundary (vertices on it, chords within
 // the tolerance), bounds of the shipped tables, the sweep of moving obstacles and the clip
 // of half-planes.
+#include <algorithm>
 #include <cmath>
 
 #include "sdf_harness.hpp"
@@ -12,8 +13,9 @@ using nlohmann::json;
 
 namespace {
 
-/// Every vertex of every ring lies on obstacle k's boundary at time t (|sdf| tiny) and
-/// every chord's midpoint within `tol` of it (inside or out).
+/// Every vertex of every ring and every chord's midpoint lies within `tol` of obstacle k's
+/// boundary at time t (inside or out): vertices of a primitive lie on it, those where two
+/// parts' rings cross on the chords.
 void check_on_boundary(const ObstacleField& f, std::size_t k, const ObstacleOutline& o, double t,
                        double tol) {
   INFO("obstacle " << o.id);
@@ -22,7 +24,7 @@ void check_on_boundary(const ObstacleField& f, std::size_t k, const ObstacleOutl
     REQUIRE(ring.size() >= 2);
     for (std::size_t i = 0; i < ring.size(); ++i) {
       const Vec2 a = ring[i], b = ring[(i + 1) % ring.size()];
-      CHECK(std::abs(f.eval(k, a, t).d) <= 1e-9);
+      CHECK(std::abs(f.eval(k, a, t).d) <= tol + 1e-9);
       CHECK(std::abs(f.eval(k, 0.5 * (a + b), t).d) <= tol + 1e-9);
     }
   }
@@ -51,12 +53,14 @@ TEST_CASE("outline: the pinball table's bounds are its outer wall's, exactly") {
   Sim sim(backend_scene(load_config("pinball.json")), {{Vec2(0.2, 0.3), Vec2::Zero()}});
   pinsim_state_view sv{1, 0.0, sim.x.data(), sim.v.data(), sim.w.data(), sim.r.data()};
   const OutlineSet set = sim.backend->outline(StateView(sv), 0.0);
-  // box x 0..0.5, y -0.05..0.75 under a circle of radius 0.25 about (0.25, 0.75)
-  CHECK(set.sweep.x0 == 0.0);
-  CHECK(set.sweep.x1 == 0.5);
-  CHECK(set.sweep.y0 == 0.35 - 0.4);
+  // the outer wall's box (x 0..0.5, y -0.05..0.75) under a circle of radius 0.25 about
+  // (0.25, 0.75); the drain (0.22 +- 0.225, -0.04 +- 0.01) sticks out on the left
+  CHECK(set.sweep.x0 == 0.22 - 0.225);
+  CHECK(set.sweep.x1 == 0.25 + 0.25);
+  CHECK(set.sweep.y0 == std::min(0.35 - 0.4, -0.04 - 0.01));
   CHECK(set.sweep.y1 == 0.75 + 0.25);
-  CHECK(set.bounds.y0 == set.sweep.y0);
+  CHECK(set.bounds.y1 == set.sweep.y1);
+  CHECK(set.obstacles[0].bounds.x0 == 0.25 - 0.25);
   // the outer wall is one ring: the inside of the box-and-circle union, clockwise
   REQUIRE(set.obstacles[0].rings.size() == 1);
   double area2 = 0.0;
@@ -100,11 +104,12 @@ TEST_CASE("outline: a half-plane is cut to the obstacles and particles, grown by
   Sim sim(scene, {{Vec2(2.0, 1.0), Vec2::Zero()}});
   pinsim_state_view sv{1, 0.0, sim.x.data(), sim.v.data(), sim.w.data(), sim.r.data()};
   const OutlineSet set = sim.backend->outline(StateView(sv), 1e-3);
-  // finite parts: the peg (-0.5..0.5, 0.5..1.5) and the ball's centre (2, 1): 2.5 wide
+  // the peg (-0.5..0.5, 0.5..1.5), the floor's point (0, 0) and the ball's centre (2, 1):
+  // 2.5 wide, grown by 0.25; the floor is the part below y = 0
   const pinsim_bounds& fl = set.obstacles[0].bounds;
   CHECK(fl.x0 == Approx(-0.75));
   CHECK(fl.x1 == Approx(2.25));
-  CHECK(fl.y0 == Approx(0.25));
+  CHECK(fl.y0 == Approx(-0.25));
   CHECK(fl.y1 == 0.0);
   check_on_boundary(sim.backend->field(), 1, set.obstacles[1], 0.0, 1e-3);
 }
