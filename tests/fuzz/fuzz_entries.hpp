@@ -12,7 +12,7 @@ namespace pinsim::fuzz {
 /// How pinsim treated an input.
 enum class Outcome {
   accepted,  ///< valid
-  refused,   ///< a SceneError or LoadError: the input was refused with a located message
+  refused,   ///< an InputError or LoadError: the input was refused with a located message
   other,     ///< some other exception: refused, but with a message that names no location
 };
 

@@ -6,19 +6,19 @@
 #include <filesystem>
 
 #include "core/plugin_loader.hpp"
-#include "core/scene_error.hpp"
+#include "core/input_error.hpp"
 #include "fuzz_entries.hpp"
 
 namespace pinsim::fuzz {
 
-/// Runs `f`; an exception is a refusal, located (SceneError, LoadError) or not (any other).
+/// Runs `f`; an exception is a refusal, located (InputError, LoadError) or not (any other).
 /// Anything worse (a signal, a sanitizer report, a non-std exception) is left to the fuzzer.
 template <class F>
 Result guarded(F&& f) {
   try {
     f();
     return {};
-  } catch (const SceneError& e) {
+  } catch (const InputError& e) {
     return {Outcome::refused, e.what()};
   } catch (const LoadError& e) {
     return {Outcome::refused, e.what()};

@@ -1,6 +1,6 @@
 // libFuzzer's entry for one target (PINSIM_FUZZ_ENTRY names the function of
 // fuzz_entries.hpp). Set PINSIM_FUZZ_STRICT=1 to treat an error message that names no
-// file or JSON path (any exception but SceneError and LoadError) as a finding too.
+// file or JSON path (any exception but InputError and LoadError) as a finding too.
 #include <spdlog/spdlog.h>
 
 #include <cstdint>

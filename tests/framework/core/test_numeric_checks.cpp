@@ -157,9 +157,10 @@ TEST_CASE("numeric checks: total-energy blow-up names the particle and plugin, r
   CHECK(readable(m));
 }
 
-TEST_CASE("numeric checks: implicit Euler with ks = 1e300 is the solver's failure") {
+TEST_CASE("numeric checks: implicit Euler with ks = 1e100 is the solver's failure") {
+  // (1e100 is the largest parameter a scene may give: the limit of value_limits.hpp)
   test::FpTrapsOff traps;
-  const RunResult r = run(strand(0.001, 1e300, "implicit_euler"));
+  const RunResult r = run(strand(0.001, 1e100, "implicit_euler"));
   CHECK(r.exit_code == 1);
   const auto& e = r.summary["error"];
   CHECK(e["numeric"] == "solver_failure");

@@ -63,10 +63,15 @@ TEST_CASE("run output: trajectory, events and summary are written") {
 }
 
 TEST_CASE("run output: scene.json is indented, unless indentation would dwarf it") {
-  // A union nested 100 deep: indented, each of its ~400 lines would carry up to 400 spaces of
-  // indentation (quadratic in the depth); compact, it is a few kilobytes like its input.
-  std::string shape = R"({"type": "circle", "center": [0, -1], "radius": 0.5})";
-  for (int i = 0; i < 100; ++i) shape = R"({"type": "union", "shapes": [)" + shape + "]}";
+  // 100 discs in a union nested 30 deep (the shape nesting limit is 32): indented, each disc's
+  // ~6 lines would carry about 120 spaces each (quadratic in the depth); compact, the file is
+  // about the size of its input.
+  std::string shape;
+  for (int i = 0; i < 100; ++i)
+    shape += std::string(i ? ", " : "") + R"({"type": "circle", "center": [)" + std::to_string(i) +
+             R"(, -1], "radius": 0.5})";
+  shape = R"({"type": "union", "shapes": [)" + shape + "]}";
+  for (int i = 0; i < 29; ++i) shape = R"({"type": "union", "shapes": [)" + shape + "]}";
   const std::string nested = R"({"time": {"dt": 0.01, "duration": 0.05},
     "particles": [{"x": [0, 0]}], "backend": {"name": "sdf"},
     "obstacles": [{"id": "w", "shape": )" +
@@ -75,7 +80,7 @@ TEST_CASE("run output: scene.json is indented, unless indentation would dwarf it
   RunSettings rs;
   rs.out = test::temp_dir("scene-json-nested");
   REQUIRE(run_scene(parse_scene(nested, "nested.json", "."), loader, rs).exit_code == 0);
-  const std::string written = test::read_file(rs.out / "scene.json");
+  const std::string written = test::read_file(*rs.out / "scene.json");
   CHECK(written.size() < 2 * nested.size());
   CHECK(written.find('\n') == written.size() - 1);  // one line
   CHECK(nlohmann::json::parse(written) == parse_scene(nested, "nested.json", ".").doc);
@@ -86,7 +91,7 @@ TEST_CASE("run output: scene.json is indented, unless indentation would dwarf it
                                 "flat.json", "."),
                     loader, rs)
               .exit_code == 0);
-  CHECK_THAT(test::read_file(rs.out / "scene.json"), Contains("{\n  \"particles\": ["));
+  CHECK_THAT(test::read_file(*rs.out / "scene.json"), Contains("{\n  \"particles\": ["));
 }
 
 TEST_CASE("run output: an earlier run is not overwritten without --overwrite") {
