@@ -1,10 +1,44 @@
 #!/usr/bin/env bash
-# README command 2: set up, build, and run every test (ctest, then the out-of-tree SDK check).
+# README command 2: set up, build, and run every test, three ways (docs/fuzzing.md):
+#   1. the release build: ctest, then the out-of-tree SDK check;
+#   2. the same ctest suite under AddressSanitizer + UBSan (the asan preset), zero reports;
+#   3. a bounded libFuzzer run of the parsers (the fuzz preset, clang; 30 s per target).
+# Each stage prints its time. PINSIM_TEST_STAGES=release (or "release asan") runs fewer.
+# The stages run one after another, so the release and asan suites' Slurm tests never meet
+# (each starts and stops its own cluster, in its own folder, on free ports).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 jobs=$(nproc 2>/dev/null || echo 2)
-ctest --preset release -j "$jobs"
-if [ -f scripts/test_sdk.sh ]; then
-  bash scripts/test_sdk.sh
+stages=${PINSIM_TEST_STAGES:-release asan fuzz}
+has() { [[ " $stages " == *" $1 "* ]]; }
+took() { echo "test.sh: $1 took $((SECONDS - $2)) s"; }
+
+if has release; then
+  t=$SECONDS
+  ctest --preset release -j "$jobs"
+  if [ -f scripts/test_sdk.sh ]; then
+    bash scripts/test_sdk.sh
+  fi
+  took "release tests" $t
+fi
+
+if has asan; then
+  t=$SECONDS
+  cmake --preset asan >/dev/null
+  cmake --build --preset asan -j "$jobs"
+  took "asan build" $t
+  t=$SECONDS
+  # Any report fails its test: ASan halts at the first error, UBSan is built without
+  # recovery (-fno-sanitize-recover=all); leaks are errors at exit.
+  ASAN_OPTIONS="halt_on_error=1:detect_leaks=1:strict_init_order=1:check_initialization_order=1" \
+  UBSAN_OPTIONS="halt_on_error=1:print_stacktrace=1" \
+    ctest --preset asan -j "$jobs"
+  took "asan tests" $t
+fi
+
+if has fuzz; then
+  t=$SECONDS
+  bash scripts/fuzz.sh --time 30
+  took "fuzz build and run" $t
 fi
