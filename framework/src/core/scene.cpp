@@ -217,6 +217,11 @@ void apply_override(nlohmann::json& doc, const std::string& assignment, const st
     value = parse_json_text(text, "--set " + path + "=");
   } catch (const JsonSyntaxError&) {
     value = text;  // a bare word is a string
+    try {
+      (void)value.dump();  // JSON text is UTF-8: anything else would fail later, unlocated
+    } catch (const nlohmann::json::type_error&) {
+      throw SceneError(label + ": --set " + path + ": the value is not valid UTF-8");
+    }
   }
   const auto keys = split_path(path);
   if (keys.empty()) throw InputError("--set " + assignment + ": empty path");

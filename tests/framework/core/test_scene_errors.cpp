@@ -242,3 +242,8 @@ TEST_CASE("scene errors: --set cannot nest deeper than the parser's limit") {
   REQUIRE_THROWS_WITH(build({"contacts.a=" + std::string(255, '[') + std::string(255, ']')}),
                       Contains("nests 257 levels deep, more than the limit of 256"));
 }
+
+TEST_CASE("scene errors: a --set value that is not UTF-8 is refused, naming the path") {
+  REQUIRE_THROWS_WITH(build({"name=ab\xff\xfe"}),
+                      Contains("bad.json: --set name: the value is not valid UTF-8"));
+}
