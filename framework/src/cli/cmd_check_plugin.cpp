@@ -8,6 +8,7 @@
 
 #include "commands.hpp"
 #include "core/input_error.hpp"
+#include "core/json_read.hpp"
 #include "core/plugin_loader.hpp"
 #include "core/scene.hpp"
 #include "tools/check_layout.hpp"
@@ -34,7 +35,7 @@ struct CheckPluginArgs {
 nlohmann::json parse_params(const CheckPluginArgs& a) {
   nlohmann::json p = nlohmann::json::object();
   if (!a.params_json.empty()) {
-    p = nlohmann::json::parse(a.params_json, nullptr, false);
+    p = parse_json_text(a.params_json, "--params");
     if (!p.is_object()) throw InputError("--params: expected a JSON object, got " + a.params_json);
   }
   for (const auto& kv : a.params) {
@@ -42,8 +43,12 @@ nlohmann::json parse_params(const CheckPluginArgs& a) {
     if (eq == std::string::npos || eq == 0)
       throw InputError("--param " + kv + ": expected key=value");
     const std::string key = kv.substr(0, eq), value = kv.substr(eq + 1);
-    nlohmann::json v = nlohmann::json::parse(value, nullptr, false);
-    p[key] = v.is_discarded() ? nlohmann::json(value) : v;
+    // a JSON value (within the scene parser's limits), else, if not JSON at all, the text
+    try {
+      p[key] = parse_json_text(value, "--param " + key);
+    } catch (const JsonSyntaxError&) {
+      p[key] = value;
+    }
   }
   return p;
 }

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <fstream>
 #include <set>
 #include <vector>
 
@@ -267,6 +268,16 @@ nlohmann::json parse_json_text(const std::string& text, const std::string& label
   }
   if (auto p = what.find("syntax error"); p != std::string::npos) what = what.substr(p);
   throw JsonSyntaxError(where + "malformed JSON: " + what);
+}
+
+nlohmann::json read_json_file(const std::filesystem::path& file) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec))
+    throw InputError(file.string() + ": not found or not a regular file");
+  std::ifstream in(file, std::ios::binary);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (!in.good() && !in.eof()) throw InputError(file.string() + ": cannot be read");
+  return parse_json_text(text, file.string());
 }
 
 }  // namespace pinsim

@@ -3,6 +3,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <filesystem>
 #include <initializer_list>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -80,5 +81,9 @@ struct JsonLimits {
 /// text that is not JSON, InputError for the rest.
 nlohmann::json parse_json_text(const std::string& text, const std::string& label,
                                const JsonLimits& limits = JsonLimits::from_environment());
+
+/// The file parsed by parse_json_text with its default limits (messages name the file).
+/// Throws InputError if it is not a regular file or cannot be read.
+nlohmann::json read_json_file(const std::filesystem::path& file);
 
 }  // namespace pinsim

@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "core/format.hpp"
+#include "core/json_read.hpp"
 
 namespace pinsim {
 namespace fs = std::filesystem;
@@ -101,12 +102,7 @@ RunData load_run(const fs::path& dir) {
   r.label = fs::absolute(dir).lexically_normal().filename().string();
   if (r.label.empty()) r.label = fs::absolute(dir).lexically_normal().parent_path().filename();
   if (fs::exists(dir / "summary.json")) {
-    std::ifstream in(dir / "summary.json");
-    try {
-      r.summary = json::parse(in);
-    } catch (const json::exception& e) {
-      throw std::runtime_error((dir / "summary.json").string() + ": " + e.what());
-    }
+    r.summary = read_json_file(dir / "summary.json");  // errors name the file
   }
   read_csv(dir / "trajectory.csv", "t,particle,x,y,vx,vy", 6, [&](const std::vector<double>& v) {
     const auto i = static_cast<std::size_t>(v[1]);

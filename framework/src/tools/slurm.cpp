@@ -18,6 +18,7 @@
 #include <thread>
 
 #include "core/input_error.hpp"
+#include "core/json_read.hpp"
 #include "tools/child_process.hpp"
 #include "tools/sweep.hpp"
 
@@ -129,9 +130,13 @@ struct Status {
 };
 
 std::optional<Status> read_status(const ArrayJob& j, int i) {
-  std::ifstream in(status_file(j, i));
-  if (!in) return std::nullopt;
-  const json s = json::parse(in, nullptr, false);
+  if (!fs::exists(status_file(j, i))) return std::nullopt;
+  json s;
+  try {
+    s = read_json_file(status_file(j, i));
+  } catch (const InputError&) {
+    return std::nullopt;  // being written, or not a status line: no status yet
+  }
   if (!s.is_object() || !s.contains("exit")) return std::nullopt;
   return Status{s.value("exit", -1), s.value("start", 0.0), s.value("end", 0.0)};
 }
@@ -159,11 +164,15 @@ struct Submission {
 };
 
 std::optional<Submission> read_submission(const ArrayJob& j) {
-  std::ifstream in(slurm_dir(j) / "job.json");
-  if (!in) return std::nullopt;
-  const json d = json::parse(in, nullptr, false);
+  if (!fs::exists(slurm_dir(j) / "job.json")) return std::nullopt;
+  json d;
+  try {
+    d = read_json_file(slurm_dir(j) / "job.json");
+  } catch (const InputError& e) {
+    throw InputError(std::string(e.what()) + "; remove it");
+  }
   if (!d.is_object())
-    throw InputError((slurm_dir(j) / "job.json").string() + ": not valid JSON; remove it");
+    throw InputError((slurm_dir(j) / "job.json").string() + ": not a JSON object; remove it");
   Submission s;
   s.shards = d.value("shards", 0);
   s.command = d.value("command", std::vector<std::string>());

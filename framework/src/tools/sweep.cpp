@@ -123,11 +123,10 @@ void write_shard(const Table& t, const fs::path& csv, Manifest m) {
 
 std::optional<Manifest> read_manifest(const fs::path& csv) {
   const fs::path p = manifest_path(csv);
-  std::ifstream in(p);
-  if (!in) return std::nullopt;
-  const nlohmann::json j = nlohmann::json::parse(in, nullptr, false);
+  if (!fs::exists(p)) return std::nullopt;
   Manifest m;
   try {
+    const nlohmann::json j = read_json_file(p);
     if (!j.is_object()) throw std::runtime_error("not a JSON object");
     m.tool = j.at("tool").get<std::string>();
     m.sweep = j.at("sweep").get<std::string>();

@@ -195,6 +195,24 @@ TEST_CASE("limits: a --view cairo cannot draw is refused before drawing") {
             .code == 0);
 }
 
+TEST_CASE("limits: check-plugin's --params and --param values are parsed within the limits") {
+  // (deeper values once reached nlohmann's recursive copy and dump; 1000 levels here, as one
+  // command-line argument may not exceed 128 KiB)
+  const std::string deep = std::string(1000, '[') + std::string(1000, ']');
+  for (const std::string opt : {"--params '", "--param 'k="}) {
+    const auto r = pinsim_cli("check-plugin linear_spring " + opt + deep + "'");
+    CAPTURE(opt);
+    CHECK(r.code == 2);
+    CHECK_THAT(r.output,
+               Contains(opt == "--params '" ? "--params: [0][0][0]" : "--param k: [0][0]") &&
+                   Contains("nested deeper than 256 levels of arrays and objects"));
+  }
+  // a value that is not JSON is still taken as text (and refused by the plugin's table)
+  const auto r = pinsim_cli("check-plugin linear_spring --param k=stiff");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output, Contains("stiff"));
+}
+
 TEST_CASE("limits: arrays, strings and particle counts have limits, raised from the environment") {
   const auto dir = test::temp_dir("limits-sizes");
   const std::string p = "validate " + configs + "/projectile.json --set ";

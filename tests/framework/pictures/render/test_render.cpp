@@ -356,6 +356,14 @@ TEST_CASE("render and replay: a folder that is not a readable run is exit 2 nami
     CHECK_THAT(r.output.c_str(), Catch::Contains(run.string() + ": cannot read the run folder: ") &&
                                      Catch::Contains("trajectory.csv:2: expected 6 numbers"));
   }
+  // A summary.json nested 100,000 deep (once a stack overflow): refused while parsing.
+  const fs::path deep = make_run("deep-summary");
+  test::write_file(deep / "summary.json", std::string(100000, '[') + std::string(100000, ']'));
+  r = pinsim_cli("render " + deep.string() + " " + kView + " --out " + (deep / "x.png").string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output.c_str(),
+             Catch::Contains((deep / "summary.json").string() + ": ") &&
+                 Catch::Contains("nested deeper than 256 levels of arrays and objects"));
   r = pinsim_cli("render " + kScene + " --view 1,1,0,0");
   CHECK(r.code == 2);
   CHECK_THAT(r.output.c_str(), Catch::Contains("--view: expected x0,y0,x1,y1"));
