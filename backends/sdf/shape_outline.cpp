@@ -50,6 +50,12 @@ Rings ShapeTree::outline_node(uint32_t i, double tol, const Ring& clip_parent, d
   Rings out;
   const Rotation orient{n.ca, n.sa};
   const double turned = frame + std::atan2(n.sa, n.ca);  // the primitive's own frame
+  // A ring given in the primitive's own frame, rotated and moved to its place.
+  auto placed = [&n, &orient](const Ring& local) {
+    Ring ring;
+    for (const Vec2& p : local) ring.push_back(n.c + orient.apply(p));
+    return ring;
+  };
   switch (n.type) {
     case ShapeType::kCircle:
       out.rings.push_back(circle_ring(n.c, n.r0, tol, frame));
@@ -65,9 +71,7 @@ Rings ShapeTree::outline_node(uint32_t i, double tol, const Ring& clip_parent, d
         else
           local.push_back(corners[k]);
       }
-      Ring ring;
-      for (const Vec2& p : local) ring.push_back(n.c + orient.apply(p));
-      out.rings.push_back(std::move(ring));
+      out.rings.push_back(placed(local));
       break;
     }
     case ShapeType::kCapsule: {
@@ -79,9 +83,7 @@ Rings ShapeTree::outline_node(uint32_t i, double tol, const Ring& clip_parent, d
       } else {
         local = {Vec2(-h, 0.0), Vec2(h, 0.0)};
       }
-      Ring ring;
-      for (const Vec2& p : local) ring.push_back(n.c + orient.apply(p));
-      out.rings.push_back(std::move(ring));
+      out.rings.push_back(placed(local));
       break;
     }
     case ShapeType::kTaperedCapsule: {

@@ -5,8 +5,8 @@
 #include <exception>
 #include <filesystem>
 
-#include "core/plugin_loader.hpp"
 #include "core/input_error.hpp"
+#include "core/plugin_loader.hpp"
 #include "fuzz_entries.hpp"
 
 namespace pinsim::fuzz {

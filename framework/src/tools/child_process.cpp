@@ -10,7 +10,6 @@
 #include <stdexcept>
 #include <thread>
 
-
 namespace pinsim {
 
 Child start_child(const std::vector<std::string>& argv, ChildOutput output) {
