@@ -216,6 +216,14 @@ class Page {
     return sleep(ms);
   }
 
+  /** Resizes the window (viewport) to width x height CSS pixels at device pixel ratio dpr. */
+  async resize(width, height, dpr = this.dpr) {
+    await this.page.setViewport({ width, height, deviceScaleFactor: dpr });
+    this.width = width;
+    this.height = height;
+    this.dpr = dpr;
+  }
+
   /** Runs `fn(...args)` in the page (puppeteer's evaluate). */
   evaluate(fn, ...args) {
     return this.page.evaluate(fn, ...args);

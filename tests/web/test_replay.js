@@ -3,7 +3,8 @@
 // (BROWSER)"): a 2 s run of the pinball table is turned into a page, which is opened at
 // 1280x900, 800x600 and 800x600 with device pixel ratio 2. At each size: no page error, the
 // canvas and every control wholly inside the window with no scrolling, the canvas at the
-// largest size that keeps the table's aspect ratio (it touches the window's sides or the bar),
+// largest size that keeps the table's aspect ratio (it touches the window's sides or the bar)
+// - also after the 1280x900 window is resized to 800x500 -,
 // its backing store devicePixelRatio times its CSS size, playback advances, Space pauses it,
 // and the canvas's screenshot is not blank.
 //
@@ -58,6 +59,36 @@ function near(a, b, tol, what) {
   if (!(Math.abs(a - b) <= tol)) throw new web.CheckFailed(`${what}: ${a} vs ${b} (tolerance ${tol})`);
 }
 
+/** Checks the canvas's fit in the page's current window (see the file's comment). */
+async function checkFit(page) {
+  const tag = page.describe().split(" file:")[0];
+  await page.checkInViewport(CONTROLS);
+  const d0 = await page.data();
+  // The fit. The map's size comes from the page's own data (the canvas's pixel grid).
+  const g = await page.evaluate(() => {
+    const c = document.getElementById("view").getBoundingClientRect();
+    const bar = document.getElementById("bar").getBoundingClientRect();
+    const v = document.getElementById("view");
+    return { cssW: c.width, cssH: c.height, barH: bar.height, barTop: bar.top, canvasBottom: c.bottom,
+             backW: v.width, backH: v.height, vw: innerWidth, vh: innerHeight, dpr: devicePixelRatio,
+             mapW: DATA.map.width, mapH: DATA.map.height };
+  });
+  const s = Number(d0.scale);
+  // Largest scale s with s*mapW <= vw and s*mapH <= vh - bar (the CSS size is s * map size,
+  // floored to whole pixels, so within 1 px).
+  near(s, Math.min(g.vw / g.mapW, (g.vh - g.barH) / g.mapH), 1e-4, `${tag}: data-scale`);
+  near(g.cssW, g.mapW * s, 1, `${tag}: canvas CSS width`);
+  near(g.cssH, g.mapH * s, 1, `${tag}: canvas CSS height`);
+  const touches = Math.abs(g.cssW - g.vw) <= 1 || Math.abs(g.cssH - (g.vh - g.barH)) <= 1;
+  if (!touches) throw new web.CheckFailed(`${tag}: the canvas ${g.cssW}x${g.cssH} does not fill the window`);
+  if (g.barTop + 0.5 < g.canvasBottom) throw new web.CheckFailed(`${tag}: the bar overlaps the canvas`);
+  near(g.dpr, page.dpr, 1e-9, `${tag}: devicePixelRatio`);
+  near(g.backW, g.cssW * g.dpr, 1, `${tag}: canvas backing width`);
+  near(g.backH, g.cssH * g.dpr, 1, `${tag}: canvas backing height`);
+  console.log(`${tag}: map ${g.mapW}x${g.mapH} shown at ${g.cssW}x${g.cssH} CSS px (scale ${s}), ` +
+              `backing ${g.backW}x${g.backH}, bar ${g.barH.toFixed(0)} px; controls in the window`);
+}
+
 async function checkSize(browser, file, size, shots) {
   // At a quarter speed the 2 s run lasts 8 s of wall clock: the checks end well before it
   // stops by itself at its end (where Space would restart it).
@@ -65,31 +96,15 @@ async function checkSize(browser, file, size, shots) {
   const tag = page.describe().split(" file:")[0];
   try {
     const d0 = await page.waitForData((d) => d.status === "ok", { what: "data-status ok" });
-    await page.checkInViewport(CONTROLS);
-
-    // The fit. The map's size comes from the page's own data (the canvas's pixel grid).
-    const g = await page.evaluate(() => {
-      const c = document.getElementById("view").getBoundingClientRect();
-      const bar = document.getElementById("bar").getBoundingClientRect();
-      const v = document.getElementById("view");
-      return { cssW: c.width, cssH: c.height, barH: bar.height, barTop: bar.top, canvasBottom: c.bottom,
-               backW: v.width, backH: v.height, vw: innerWidth, vh: innerHeight, dpr: devicePixelRatio,
-               mapW: DATA.map.width, mapH: DATA.map.height };
-    });
-    const s = Number(d0.scale);
-    // Largest scale s with s*mapW <= vw and s*mapH <= vh - bar (the CSS size is s * map size,
-    // floored to whole pixels, so within 1 px).
-    near(s, Math.min(g.vw / g.mapW, (g.vh - g.barH) / g.mapH), 1e-4, `${tag}: data-scale`);
-    near(g.cssW, g.mapW * s, 1, `${tag}: canvas CSS width`);
-    near(g.cssH, g.mapH * s, 1, `${tag}: canvas CSS height`);
-    const touches = Math.abs(g.cssW - g.vw) <= 1 || Math.abs(g.cssH - (g.vh - g.barH)) <= 1;
-    if (!touches) throw new web.CheckFailed(`${tag}: the canvas ${g.cssW}x${g.cssH} does not fill the window`);
-    if (g.barTop + 0.5 < g.canvasBottom) throw new web.CheckFailed(`${tag}: the bar overlaps the canvas`);
-    near(g.dpr, size.dpr, 1e-9, `${tag}: devicePixelRatio`);
-    near(g.backW, g.cssW * g.dpr, 1, `${tag}: canvas backing width`);
-    near(g.backH, g.cssH * g.dpr, 1, `${tag}: canvas backing height`);
-    console.log(`${tag}: map ${g.mapW}x${g.mapH} shown at ${g.cssW}x${g.cssH} CSS px (scale ${s}), ` +
-                `backing ${g.backW}x${g.backH}, bar ${g.barH.toFixed(0)} px; controls in the window`);
+    await checkFit(page);
+    if (size.width === 1280) {
+      // The page refits when the window changes: shrink this one to 800 x 500.
+      await page.resize(800, 500);
+      await page.waitForData((d) => d.scale !== d0.scale, { what: "data-scale changes on resize" });
+      await checkFit(page);
+      await page.resize(size.width, size.height);
+      await page.waitForData((d) => d.scale === d0.scale, { what: "data-scale back after resize" });
+    }
 
     // Playback advances by itself, and Space pauses it.
     const t0 = Number((await page.data()).t);
