@@ -548,10 +548,20 @@ const pinsim_plugin* make_table() {
 }  // namespace detail
 }  // namespace pinsim
 
+/// The entry function's name: pinsim_plugin_entry in a plugin library. A plugin compiled to
+/// be linked into the program (a static plugin: the web build, PINSIM_STATIC_PLUGINS) is
+/// compiled with -DPINSIM_STATIC_ENTRY=pinsim_static_entry_<name>, so that several can live in
+/// one program; the static registry (framework/src/core/static_plugins.hpp) lists them.
+#ifdef PINSIM_STATIC_ENTRY
+#define PINSIM_ENTRY_FUNCTION PINSIM_STATIC_ENTRY
+#else
+#define PINSIM_ENTRY_FUNCTION pinsim_plugin_entry
+#endif
+
 /// Registers CLASS as this library's plugin and exports the entry function.
-#define PINSIM_PLUGIN(CLASS)                                                                  \
-  extern "C" __attribute__((visibility("default"))) const pinsim_plugin* pinsim_plugin_entry( \
-      void) {                                                                                 \
+#define PINSIM_PLUGIN(CLASS)                                                                    \
+  extern "C" __attribute__((visibility("default"))) const pinsim_plugin* PINSIM_ENTRY_FUNCTION( \
+      void) {                                                                                   \
     try {                                                                                     \
       return ::pinsim::detail::make_table<CLASS>();                                           \
     } catch (...) {                                                                           \

@@ -8,12 +8,15 @@
 #include <system_error>
 
 #include "core/elf_check.hpp"
+#include "core/static_plugins.hpp"
 
 namespace fs = std::filesystem;
 
 namespace pinsim {
 
 std::string plugin_file_name(const std::string& name) { return "libpinsim_plugin_" + name + ".so"; }
+
+fs::path static_plugin_path(const std::string& name) { return "(built in)/" + name; }
 
 std::vector<fs::path> plugin_search_dirs(const std::vector<fs::path>& scene_paths) {
   std::vector<fs::path> dirs(scene_paths.begin(), scene_paths.end());
@@ -42,6 +45,34 @@ std::vector<fs::path> plugin_search_dirs(const std::vector<fs::path>& scene_path
   return dirs;
 }
 
+namespace {
+/// Checks a plugin table (from a library's entry function or the static registry); `where`
+/// names it in messages.
+const pinsim_plugin* checked_table(const pinsim_plugin* table, const std::string& where) {
+  if (table == nullptr)
+    throw LoadError(where + ": " PINSIM_ENTRY_SYMBOL " returned no table");
+  // Only the first two fields are safe to read before these checks pass.
+  if (table->abi_version != PINSIM_ABI_VERSION)
+    throw LoadError(where + ": wrong plugin ABI version: plugin has " +
+                    std::to_string(table->abi_version) + ", this pinsim expects " +
+                    std::to_string(PINSIM_ABI_VERSION) + " (rebuild it against this SDK)");
+  if (table->struct_size != sizeof(pinsim_plugin))
+    throw LoadError(where + ": wrong plugin table size: plugin has " +
+                    std::to_string(table->struct_size) + " bytes, this pinsim expects " +
+                    std::to_string(sizeof(pinsim_plugin)) + " (rebuild it against this SDK)");
+  if (table->name == nullptr || table->create == nullptr || table->destroy == nullptr ||
+      (table->kind != PINSIM_KIND_FORCE && table->kind != PINSIM_KIND_BACKEND))
+    throw LoadError(where +
+                    ": malformed plugin table (name, kind, create or destroy missing)");
+  if (table->kind == PINSIM_KIND_FORCE && table->force.add_force == nullptr)
+    throw LoadError(where + ": force plugin without add_force");
+  if (table->kind == PINSIM_KIND_BACKEND && table->backend.advance == nullptr)
+    throw LoadError(where + ": backend plugin without advance");
+
+  return table;
+}
+}  // namespace
+
 std::shared_ptr<const LoadedPlugin> load_plugin_file(const fs::path& file) {
   std::error_code ec;
   if (!fs::is_regular_file(file, ec)) throw LoadError("plugin file not found: " + file.string());
@@ -62,27 +93,7 @@ std::shared_ptr<const LoadedPlugin> load_plugin_file(const fs::path& file) {
                     ": missing symbol '" PINSIM_ENTRY_SYMBOL
                     "': a shared library, but not a pinsim plugin (use PINSIM_PLUGIN(Class))");
   auto entry = lib->get<const pinsim_plugin*()>(PINSIM_ENTRY_SYMBOL);
-  const pinsim_plugin* table = entry();
-  if (table == nullptr)
-    throw LoadError(file.string() + ": " PINSIM_ENTRY_SYMBOL " returned no table");
-  // Only the first two fields are safe to read before these checks pass.
-  if (table->abi_version != PINSIM_ABI_VERSION)
-    throw LoadError(file.string() + ": wrong plugin ABI version: plugin has " +
-                    std::to_string(table->abi_version) + ", this pinsim expects " +
-                    std::to_string(PINSIM_ABI_VERSION) + " (rebuild it against this SDK)");
-  if (table->struct_size != sizeof(pinsim_plugin))
-    throw LoadError(file.string() + ": wrong plugin table size: plugin has " +
-                    std::to_string(table->struct_size) + " bytes, this pinsim expects " +
-                    std::to_string(sizeof(pinsim_plugin)) + " (rebuild it against this SDK)");
-  if (table->name == nullptr || table->create == nullptr || table->destroy == nullptr ||
-      (table->kind != PINSIM_KIND_FORCE && table->kind != PINSIM_KIND_BACKEND))
-    throw LoadError(file.string() +
-                    ": malformed plugin table (name, kind, create or destroy missing)");
-  if (table->kind == PINSIM_KIND_FORCE && table->force.add_force == nullptr)
-    throw LoadError(file.string() + ": force plugin without add_force");
-  if (table->kind == PINSIM_KIND_BACKEND && table->backend.advance == nullptr)
-    throw LoadError(file.string() + ": backend plugin without advance");
-
+  const pinsim_plugin* table = checked_table(entry(), file.string());
   auto p = std::make_shared<LoadedPlugin>();
   p->library = std::move(lib);
   p->table = table;
@@ -105,6 +116,16 @@ std::shared_ptr<const LoadedPlugin> PluginLoader::remember(std::shared_ptr<const
 
 std::shared_ptr<const LoadedPlugin> PluginLoader::load(const std::string& name) {
   if (auto it = by_name_.find(name); it != by_name_.end()) return it->second;
+  // Plugins linked into the program come first (the web build has no other kind).
+  if (const StaticPlugin* sp = find_static_plugin(name)) {
+    auto p = std::make_shared<LoadedPlugin>();
+    p->table = checked_table(sp->entry(), "built-in plugin '" + name + "'");
+    if (p->name() != name)
+      throw LoadError("built-in plugin '" + name + "' declares the name '" + p->name() + "'");
+    p->path = static_plugin_path(name);
+    spdlog::debug("plugin '{}' {} is built in", name, p->table->version);
+    return by_name_.emplace(name, std::move(p)).first->second;
+  }
   const std::string file = plugin_file_name(name);
   for (const auto& d : dirs_) {
     std::error_code ec;

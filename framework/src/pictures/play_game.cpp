@@ -6,7 +6,6 @@
 #include <stdexcept>
 
 #include "pictures/render_data.hpp"
-#include "pictures/render_field.hpp"
 
 namespace pinsim {
 using nlohmann::json;
