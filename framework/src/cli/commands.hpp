@@ -15,6 +15,7 @@ void add_stress_command(CLI::App& app);
 void add_crosscheck_command(CLI::App& app);
 void add_render_command(CLI::App& app);
 void add_replay_command(CLI::App& app);
+void add_share_command(CLI::App& app);
 void add_play_command(CLI::App& app);
 void add_grade_command(CLI::App& app);
 

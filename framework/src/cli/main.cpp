@@ -42,6 +42,7 @@ int main(int argc, char** argv) {
   pinsim::cli::add_crosscheck_command(app);
   pinsim::cli::add_render_command(app);
   pinsim::cli::add_replay_command(app);
+  pinsim::cli::add_share_command(app);
   pinsim::cli::add_play_command(app);
   pinsim::cli::add_grade_command(app);
 
