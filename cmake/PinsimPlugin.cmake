@@ -3,9 +3,10 @@
 # Used in-tree and, through the installed pinsimConfig.cmake, by out-of-tree authors
 # (then the library lands in the author's build folder and is not installed).
 #
-# In-tree with PINSIM_STATIC_PLUGINS=ON it also builds pinsim_static_NAME, a static library of
-# the same sources whose entry function is pinsim_static_entry_NAME (PINSIM_STATIC_ENTRY in
-# pinsim/plugin.hpp), for the static plugin registry. In the web build (Emscripten) there are
+# In-tree with PINSIM_STATIC_PLUGINS=ON (or the tests, tests/share) it also builds
+# pinsim_static_NAME, a static library of the same sources whose entry function is
+# pinsim_static_entry_NAME (PINSIM_STATIC_ENTRY in pinsim/plugin.hpp), for the static plugin
+# registry. In the web build (Emscripten) there are
 # no modules: pinsim_plugin_NAME itself is that static library.
 function(pinsim_add_plugin name)
   set(target pinsim_plugin_${name})
@@ -16,7 +17,8 @@ function(pinsim_add_plugin name)
     set_property(GLOBAL APPEND PROPERTY PINSIM_STATIC_PLUGIN_NAMES ${name})
     return()
   endif()
-  if(PINSIM_STATIC_PLUGINS AND NOT PINSIM_OUT_OF_TREE AND TARGET pinsim_options)
+  if((PINSIM_STATIC_PLUGINS OR PINSIM_BUILD_TESTS) AND NOT PINSIM_OUT_OF_TREE
+     AND TARGET pinsim_options)
     add_library(pinsim_static_${name} STATIC ${ARGN})
     target_link_libraries(pinsim_static_${name} PRIVATE pinsim_sdk pinsim_options)
     target_compile_definitions(pinsim_static_${name}

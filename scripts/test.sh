@@ -2,6 +2,8 @@
 # README command 2: set up, build, and run every test, three ways (docs/fuzzing.md):
 #   1. the release build: ctest, then the out-of-tree SDK check;
 #   2. the same ctest suite under AddressSanitizer + UBSan (the asan preset), zero reports;
+#   web. the WebAssembly engine of `pinsim share` (the web preset, Emscripten), then its tests
+#      (node: bit-identical to native; headless Chromium and Firefox: the page plays);
 #   3. a bounded libFuzzer run of the parsers (the fuzz preset, clang; 30 s per target).
 # Each stage prints its time. The default is "release fuzz"; the asan stage is opt-in
 # (PINSIM_TEST_STAGES="release asan fuzz") until the whole suite has run clean under it.
@@ -11,7 +13,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 jobs=$(nproc 2>/dev/null || echo 2)
-stages=${PINSIM_TEST_STAGES:-release fuzz}
+stages=${PINSIM_TEST_STAGES:-release web fuzz}
 has() { [[ " $stages " == *" $1 "* ]]; }
 took() { echo "test.sh: $1 took $((SECONDS - $2)) s"; }
 
@@ -22,6 +24,16 @@ if has release; then
     bash scripts/test_sdk.sh
   fi
   took "release tests" $t
+fi
+
+if has web; then
+  t=$SECONDS
+  NODE_PATH=/usr/share/nodejs cmake --preset web >/dev/null
+  NODE_PATH=/usr/share/nodejs cmake --build --preset web -j "$jobs"
+  took "web build" $t
+  t=$SECONDS
+  ctest --preset release -R "^web: share" -j "$jobs"
+  took "web tests" $t
 fi
 
 if has asan; then

@@ -562,9 +562,9 @@ const pinsim_plugin* make_table() {
 #define PINSIM_PLUGIN(CLASS)                                                                    \
   extern "C" __attribute__((visibility("default"))) const pinsim_plugin* PINSIM_ENTRY_FUNCTION( \
       void) {                                                                                   \
-    try {                                                                                     \
-      return ::pinsim::detail::make_table<CLASS>();                                           \
-    } catch (...) {                                                                           \
-      return nullptr;                                                                         \
-    }                                                                                         \
+    try {                                                                                       \
+      return ::pinsim::detail::make_table<CLASS>();                                             \
+    } catch (...) {                                                                             \
+      return nullptr;                                                                           \
+    }                                                                                           \
   }

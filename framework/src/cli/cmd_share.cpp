@@ -47,7 +47,8 @@ fs::path web_module() {
 
 int share_command(const ShareArgs& a) {
   // The scene's own text goes into the page (the default scene's when none is given).
-  const std::string scene_text = a.scene.empty() ? std::string(kDefaultSceneText) : read_text(a.scene);
+  const std::string scene_text =
+      a.scene.empty() ? std::string(kDefaultSceneText) : read_text(a.scene);
   const std::string scene_file = a.scene.empty() ? std::string(kDefaultSceneName) : a.scene;
   Scene scene = load_scene_or_default(a.scene, {});
 
@@ -116,7 +117,8 @@ int share_command(const ShareArgs& a) {
 void add_share_command(CLI::App& app) {
   auto a = std::make_shared<ShareArgs>();
   CLI::App* c = app.add_subcommand(
-      "share", "Write one self-contained HTML page in which the table is played live (WebAssembly)");
+      "share",
+      "Write one self-contained HTML page in which the table is played live (WebAssembly)");
   c->add_option("scene", a->scene, "Scene file (default: the embedded pinball table)");
   c->add_option("--out,-o", a->out, "HTML file (default: game.html)");
   c->add_option("--width,-w", a->width, "Picture width, pixels (the page scales it to the window)")

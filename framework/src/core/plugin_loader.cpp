@@ -49,8 +49,7 @@ namespace {
 /// Checks a plugin table (from a library's entry function or the static registry); `where`
 /// names it in messages.
 const pinsim_plugin* checked_table(const pinsim_plugin* table, const std::string& where) {
-  if (table == nullptr)
-    throw LoadError(where + ": " PINSIM_ENTRY_SYMBOL " returned no table");
+  if (table == nullptr) throw LoadError(where + ": " PINSIM_ENTRY_SYMBOL " returned no table");
   // Only the first two fields are safe to read before these checks pass.
   if (table->abi_version != PINSIM_ABI_VERSION)
     throw LoadError(where + ": wrong plugin ABI version: plugin has " +
@@ -62,8 +61,7 @@ const pinsim_plugin* checked_table(const pinsim_plugin* table, const std::string
                     std::to_string(sizeof(pinsim_plugin)) + " (rebuild it against this SDK)");
   if (table->name == nullptr || table->create == nullptr || table->destroy == nullptr ||
       (table->kind != PINSIM_KIND_FORCE && table->kind != PINSIM_KIND_BACKEND))
-    throw LoadError(where +
-                    ": malformed plugin table (name, kind, create or destroy missing)");
+    throw LoadError(where + ": malformed plugin table (name, kind, create or destroy missing)");
   if (table->kind == PINSIM_KIND_FORCE && table->force.add_force == nullptr)
     throw LoadError(where + ": force plugin without add_force");
   if (table->kind == PINSIM_KIND_BACKEND && table->backend.advance == nullptr)

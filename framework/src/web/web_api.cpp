@@ -125,7 +125,8 @@ EMSCRIPTEN_KEEPALIVE const char* pinsim_web_frame() {
   const PinballGame& g = game();
   const pinsim::State& s = g.state();
   json parts = json::array();
-  for (Eigen::Index i = 0; i < s.x.cols(); ++i) parts.push_back({s.x(0, i), s.x(1, i), s.radius[i]});
+  for (Eigen::Index i = 0; i < s.x.cols(); ++i)
+    parts.push_back({s.x(0, i), s.x(1, i), s.radius[i]});
   json moving = json::array();
   const json& bs = g.scene().backend_scene;
   const json& obs = bs.contains("obstacles") ? bs["obstacles"] : json::array();

@@ -1,0 +1,122 @@
+// The web engine (pinsim_web.js, WebAssembly) against the native pinsim, in node: the same
+// recording gives the same state hash both ways (issue 17, bit-identity).
+//  1. page -> native: a game played through the wasm engine (a seeded schedule of plunger and
+//     flipper presses) is saved as a recording; `pinsim play --rerun` reruns it natively and
+//     must report the identical state hash (it recomputes it from the physics).
+//  2. native -> page: `pinsim play --script ... --record` (SDL's dummy video driver, no
+//     window) records a game natively; the wasm engine reruns it and must reach the hash
+//     and score the native run wrote.
+//  3. both builds compile every file with -ffp-contract=off and without fast-math (their
+//     compile_commands.json).
+// Usage: node engine_node.js --pinsim BIN --engine pinsim_web.js --scene S --tmp DIR
+//        [--native-build DIR --web-build DIR]
+"use strict";
+const fs = require("fs");
+const path = require("path");
+const { execFileSync, spawnSync } = require("child_process");
+
+function arg(name, def) {
+  const i = process.argv.indexOf("--" + name);
+  return i >= 0 ? process.argv[i + 1] : def;
+}
+const pinsim = arg("pinsim"), enginePath = arg("engine"), scene = arg("scene");
+const tmp = arg("tmp", fs.mkdtempSync("/tmp/pinsim-share-"));
+fs.mkdirSync(tmp, { recursive: true });
+let failures = 0;
+function check(ok, what) {
+  console.log((ok ? "ok   " : "FAIL ") + what);
+  if (!ok) failures++;
+}
+if (!fs.existsSync(enginePath)) {
+  console.log("SKIPPED: " + enginePath + " is not built (cmake --preset web && cmake --build --preset web)");
+  process.exit(77);
+}
+
+// A small deterministic generator (mulberry32), so the schedule is the same every run.
+function rng(seed) {
+  return () => {
+    seed = (seed + 0x6d2b79f5) | 0;
+    let t = Math.imul(seed ^ (seed >>> 15), 1 | seed);
+    t = (t + Math.imul(t ^ (t >>> 7), 61 | t)) ^ t;
+    return ((t ^ (t >>> 14)) >>> 0) / 4294967296;
+  };
+}
+
+function checkFlags(dir, label) {
+  const f = path.join(dir, "compile_commands.json");
+  if (!fs.existsSync(f)) return check(false, label + ": " + f + " exists");
+  const cmds = JSON.parse(fs.readFileSync(f, "utf8"));
+  const bad = cmds.filter((c) => !c.command.includes("-ffp-contract=off") ||
+                                 /-ffast-math|-Ofast|-funsafe-math/.test(c.command));
+  check(cmds.length > 0 && bad.length === 0,
+        `${label}: all ${cmds.length} compile commands have -ffp-contract=off, no fast-math` +
+        (bad.length ? " (not: " + bad.slice(0, 3).map((c) => c.file).join(", ") + ")" : ""));
+}
+
+require(path.resolve(enginePath))().then((m) => {
+  const api = {
+    load: m.cwrap("pinsim_web_load", "number", ["string", "string"]),
+    error: m.cwrap("pinsim_web_error", "string", []),
+    setInput: m.cwrap("pinsim_web_set_input", "number", ["string", "number"]),
+    step: m.cwrap("pinsim_web_step", "number", ["number"]),
+    dt: m.cwrap("pinsim_web_dt", "number", []),
+    status: m.cwrap("pinsim_web_status", "string", []),
+    recording: m.cwrap("pinsim_web_recording", "string", []),
+    rerun: m.cwrap("pinsim_web_rerun", "number", ["string"]),
+  };
+  const ok = (rc) => { if (rc !== 0) throw new Error(api.error()); };
+  ok(api.load(fs.readFileSync(scene, "utf8"), scene));
+
+  // 1. page -> native. Frames of 1/60 s as the page steps; presses between frames.
+  const dt = api.dt(), perFrame = Math.round(1 / 60 / dt), r = rng(17);
+  ok(api.setInput("plunger", 1));
+  ok(api.step(perFrame * 36));  // pull 0.6 s
+  ok(api.setInput("plunger", 0));
+  const held = { left_flipper: false, right_flipper: false };
+  for (let frame = 0; frame < 60 * 12; ++frame) {
+    for (const name of Object.keys(held))
+      if (r() < 0.08) { held[name] = !held[name]; ok(api.setInput(name, held[name] ? 1 : 0)); }
+    ok(api.step(perFrame));
+  }
+  const pageStatus = JSON.parse(api.status());
+  const recFile = path.join(tmp, "page_recording.json");
+  fs.writeFileSync(recFile, api.recording());
+  const rec = JSON.parse(fs.readFileSync(recFile, "utf8"));
+  check(rec.inputs.length > 10 && rec.steps === pageStatus.steps,
+        `page recording: ${rec.inputs.length} inputs, ${rec.steps} steps, score ${rec.score}, hash ${rec.state_hash}`);
+  const native = spawnSync(pinsim, ["-q", "play", scene, "--rerun", recFile], { encoding: "utf8" });
+  process.stdout.write("  native: " + native.stdout + native.stderr);
+  check(native.status === 0 && native.stdout.includes(rec.state_hash + " ") &&
+        native.stdout.includes("identical"),
+        "pinsim play --rerun of the page's recording reaches the same state hash");
+
+  // 2. native -> page.
+  const script = [{ t: 0.05, input: "plunger", action: "press" },
+                  { t: 0.65, input: "plunger", action: "release" }];
+  for (let t = 1.0; t < 7.0; t += 0.37)
+    script.push({ t: +t.toFixed(3), input: (t * 100) % 2 < 1 ? "left_flipper" : "right_flipper",
+                  action: "press" },
+                { t: +(t + 0.15).toFixed(3), input: (t * 100) % 2 < 1 ? "left_flipper" : "right_flipper",
+                  action: "release" });
+  const scriptFile = path.join(tmp, "script.json"), nativeRec = path.join(tmp, "native_recording.json");
+  fs.writeFileSync(scriptFile, JSON.stringify(script));
+  const play = spawnSync(pinsim, ["-q", "play", scene, "--script", scriptFile, "--seconds", "7.5",
+                                  "--record", nativeRec],
+                         { encoding: "utf8", env: { ...process.env, SDL_VIDEODRIVER: "dummy" } });
+  check(play.status === 0 && fs.existsSync(nativeRec),
+        "pinsim play --script --record (SDL dummy driver) wrote a recording" +
+        (play.status === 0 ? "" : ": " + play.stderr));
+  if (fs.existsSync(nativeRec)) {
+    const nrec = JSON.parse(fs.readFileSync(nativeRec, "utf8"));
+    ok(api.rerun(JSON.stringify(nrec)));
+    const s = JSON.parse(api.status());
+    check(s.state_hash === nrec.state_hash && s.score === nrec.score && s.steps === nrec.steps,
+          `the engine's rerun of the native recording: hash ${s.state_hash} (native ${nrec.state_hash}), ` +
+          `score ${s.score} (native ${nrec.score}), steps ${s.steps} (native ${nrec.steps})`);
+  }
+
+  // 3. floating-point flags.
+  if (arg("native-build")) checkFlags(arg("native-build"), "native build");
+  if (arg("web-build")) checkFlags(arg("web-build"), "web build");
+  process.exit(failures ? 1 : 0);
+}).catch((e) => { console.log("FAIL " + (e.stack || e)); process.exit(1); });
