@@ -24,6 +24,9 @@ function(pinsim_add_plugin name)
     target_compile_definitions(pinsim_static_${name}
                                PRIVATE PINSIM_STATIC_ENTRY=pinsim_static_entry_${name})
     set_property(GLOBAL APPEND PROPERTY PINSIM_STATIC_PLUGIN_NAMES ${name})
+    # At the end of the plugin's folder, where its find_package targets are visible.
+    # (DEFER expands its arguments when the call runs: the name goes in as a literal.)
+    cmake_language(EVAL CODE "cmake_language(DEFER CALL pinsim_link_static_twin [[${name}]])")
   endif()
   add_library(${target} MODULE ${ARGN})
   if(TARGET pinsim::sdk)
@@ -62,20 +65,14 @@ function(pinsim_static_plugin_target name out)
   endif()
 endfunction()
 
-# After every plugin folder: a static twin links what its module links (the sdf backend's
-# implementation library, Box2D, ...).
-function(pinsim_finish_static_plugins)
-  if(EMSCRIPTEN)
-    return()
-  endif()
-  get_property(_names GLOBAL PROPERTY PINSIM_STATIC_PLUGIN_NAMES)
-  foreach(_n IN LISTS _names)
-    get_target_property(_libs pinsim_plugin_${_n} LINK_LIBRARIES)
-    foreach(_l IN LISTS _libs)
-      if(NOT _l MATCHES "^pinsim_(sdk|options)$" AND NOT _l MATCHES "^pinsim::")
-        target_link_libraries(pinsim_static_${_n} PRIVATE ${_l})
-      endif()
-    endforeach()
+# A static twin links what its plugin module links (the sdf backend's implementation
+# library, Box2D, ...); called at the end of the plugin's folder.
+function(pinsim_link_static_twin name)
+  get_target_property(_libs pinsim_plugin_${name} LINK_LIBRARIES)
+  foreach(_l IN LISTS _libs)
+    if(NOT _l MATCHES "^pinsim_(sdk|options)$" AND NOT _l MATCHES "^pinsim::")
+      target_link_libraries(pinsim_static_${name} PRIVATE ${_l})
+    endif()
   endforeach()
 endfunction()
 

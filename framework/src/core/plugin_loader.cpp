@@ -16,8 +16,6 @@ namespace pinsim {
 
 std::string plugin_file_name(const std::string& name) { return "libpinsim_plugin_" + name + ".so"; }
 
-fs::path static_plugin_path(const std::string& name) { return "(built in)/" + name; }
-
 std::vector<fs::path> plugin_search_dirs(const std::vector<fs::path>& scene_paths) {
   std::vector<fs::path> dirs(scene_paths.begin(), scene_paths.end());
   if (const char* env = std::getenv("PINSIM_PLUGIN_PATH")) {

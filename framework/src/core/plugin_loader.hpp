@@ -34,8 +34,6 @@ struct LoadedPlugin {
 
 /// The file name a plugin called `name` has: libpinsim_plugin_<name>.so
 std::string plugin_file_name(const std::string& name);
-/// What LoadedPlugin::path holds for a plugin linked into the program (static registry).
-std::filesystem::path static_plugin_path(const std::string& name);
 
 /// Directories searched, in order: the scene's plugin_path entries, $PINSIM_PLUGIN_PATH
 /// (colon separated), the build tree's plugin folder, the install prefix's plugin folder.
@@ -49,8 +47,7 @@ class PluginLoader {
  public:
   explicit PluginLoader(std::vector<std::filesystem::path> dirs) : dirs_(std::move(dirs)) {}
 
-  /// Returns the built-in plugin `name` (core/static_plugins.hpp) if there is one, else
-  /// finds `name` in the search directories (first match wins) and loads it.
+  /// Finds `name` in the search directories (first match wins) and loads it.
   std::shared_ptr<const LoadedPlugin> load(const std::string& name);
   /// Makes load(plugin->name()) return `plugin` (a table that is not a file here, such as
   /// the grader's proxy for a sandboxed submission).

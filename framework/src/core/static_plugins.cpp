@@ -22,4 +22,6 @@ const StaticPlugin* find_static_plugin(const std::string& name) {
   return nullptr;
 }
 
+std::filesystem::path static_plugin_path(const std::string& name) { return "(built in)/" + name; }
+
 }  // namespace pinsim

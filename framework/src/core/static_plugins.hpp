@@ -7,6 +7,7 @@
 
 #include <pinsim/abi.h>
 
+#include <filesystem>
 #include <string>
 #include <vector>
 
@@ -26,5 +27,8 @@ const std::vector<StaticPlugin>& static_plugins();
 
 /// The registered plugin called `name`, or null.
 const StaticPlugin* find_static_plugin(const std::string& name);
+
+/// What LoadedPlugin::path holds for a built-in plugin: "(built in)/<name>".
+std::filesystem::path static_plugin_path(const std::string& name);
 
 }  // namespace pinsim
