@@ -53,7 +53,7 @@ async function main() {
     if (rec.state_hash !== d.stateHash || String(rec.steps) !== d.steps)
       throw new Error("the recording's hash/steps differ from the page's data- attributes");
     if (!rec.inputs.some((i) => i.input === "plunger") ||
-        !rec.inputs.some((i) => i.input.includes("flipper")))
+        !rec.inputs.some((i) => i.input === "left") || !rec.inputs.some((i) => i.input === "right"))
       throw new Error("the keys did not reach the game: " + JSON.stringify(rec.inputs));
     const recFile = path.join(tmp, "page_recording.json");
     fs.writeFileSync(recFile, JSON.stringify(rec, null, 2));
@@ -68,8 +68,8 @@ async function main() {
     // A native recording rerun in the page.
     const script = [{ t: 0.05, input: "plunger", action: "press" },
                     { t: 0.6, input: "plunger", action: "release" },
-                    { t: 2.0, input: "left_flipper", action: "press" },
-                    { t: 2.2, input: "left_flipper", action: "release" }];
+                    { t: 2.0, input: "left", action: "press" },
+                    { t: 2.2, input: "left", action: "release" }];
     const scriptFile = path.join(tmp, "script.json"), nativeRec = path.join(tmp, "native.json");
     fs.writeFileSync(scriptFile, JSON.stringify(script));
     const play = spawnSync(pinsim, ["-q", "play", scene, "--script", scriptFile, "--seconds", "4",

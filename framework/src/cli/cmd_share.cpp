@@ -75,7 +75,7 @@ int share_command(const ShareArgs& a) {
       for (const auto& n : built_in) have += (have.empty() ? "" : ", ") + n;
       throw InputError(scene.label + ": plugin '" + p->name +
                        "' is not in the web engine (it has: " + have +
-                       "); see docs/pictures.md, \"Sharing a table\", to build one in");
+                       "); docs/pictures.md (pinsim share, \"Plugins\") says how to build one in");
     }
     if (!p->library.empty())
       throw InputError(scene.label + ": plugin '" + p->name + "' is given as a library file (" +
