@@ -58,7 +58,8 @@ std::vector<std::string> with_backend(const std::string& file, const std::string
 
 RunData read_run_folder(const std::filesystem::path& dir) {
   if (!is_run_dir(dir))
-    throw InputError(dir.string() + ": not a run folder (expected trajectory.csv in it, as " +
+    throw InputError(dir.string() +
+                     ": not a run folder (expected trajectory.csv or trajectory.h5 in it, as " +
                      "pinsim run --out writes)");
   try {
     return load_run(dir);

@@ -38,8 +38,9 @@ int render_command(const RenderArgs& a) {
       else
         dirs = sub_run_dirs(p);  // e.g. a crosscheck report: one run per backend
       if (dirs.empty())
-        throw InputError(in + ": not a run folder (expected trajectory.csv in it or in its " +
-                         "subfolders, as pinsim run or crosscheck --out writes)");
+        throw InputError(
+            in + ": not a run folder (expected trajectory.csv or trajectory.h5 in it or in its " +
+            "subfolders, as pinsim run or crosscheck --out writes)");
       for (const auto& d : dirs) job.runs.push_back(read_run_folder(d));
       if (default_out.empty()) default_out = p / "picture.png";
     } else {

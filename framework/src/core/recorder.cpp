@@ -9,8 +9,9 @@ namespace fs = std::filesystem;
 
 namespace pinsim {
 
-const char* const kRunFolderFiles[6] = {"trajectory.csv", "events.csv",  "summary.json",
-                                        "scene.json",     "picture.png", "replay.html"};
+const char* const kRunFolderFiles[7] = {"trajectory.csv", "events.csv",  "summary.json",
+                                        "scene.json",     "picture.png", "replay.html",
+                                        "trajectory.h5"};
 
 namespace {
 /// NAME, NAME.tmp.PID or NAME.crash.PID for a NAME of kRunFolderFiles.
@@ -70,7 +71,7 @@ Recorder::Recorder(const fs::path& dir, const Scene& scene, bool overwrite)
     throw std::runtime_error(dir_.string() + ": cannot create output folder (" + ec.message() +
                              ")");
   if (!overwrite) {
-    for (const char* f : {"trajectory.csv", "events.csv", "summary.json"})
+    for (const char* f : {"trajectory.csv", "trajectory.h5", "events.csv", "summary.json"})
       if (fs::exists(dir_ / f, ec))
         throw std::runtime_error(dir_.string() + ": holds an earlier run (" + f +
                                  "); choose another --out or pass --overwrite");
@@ -85,13 +86,18 @@ Recorder::Recorder(const fs::path& dir, const Scene& scene, bool overwrite)
   std::string text = scene.doc.dump(2);
   if (text.size() > 4 * compact.size() + 4096) text = compact;
   write_file_atomically(dir_ / "scene.json", text + "\n");
-  traj_ = std::make_unique<LineFile>(dir_ / "trajectory.csv", "t,particle,x,y,vx,vy\n");
+  if (scene.output_format == "hdf5")
+    traj_h5_ = std::make_unique<Hdf5TrajectoryWriter>(
+        dir_ / "trajectory.h5", scene.initial_state().size(), scene.name, scene.dt);
+  else
+    traj_ = std::make_unique<LineFile>(dir_ / "trajectory.csv", "t,particle,x,y,vx,vy\n");
   events_ = std::make_unique<LineFile>(
       dir_ / "events.csv", "t,particle,obstacle,other_particle,x,y,nx,ny,vn_before,vn_after\n");
 }
 
 void Recorder::close() {
-  traj_->close();
+  if (traj_h5_) traj_h5_->close();
+  if (traj_) traj_->close();
   events_->close();
 }
 
@@ -107,6 +113,7 @@ void Recorder::flush_buffer(LineFile& f) {
 }
 
 void Recorder::write_state(const State& s) {
+  if (traj_h5_) return traj_h5_->write(s);
   for (std::size_t i = 0; i < s.size(); ++i) {
     const auto c = static_cast<Eigen::Index>(i);
     append_number(buf_, s.t);

@@ -13,13 +13,14 @@
 
 #include "core/output_file.hpp"
 #include "core/scene.hpp"
+#include "core/trajectory_hdf5.hpp"
 
 namespace pinsim {
 
 /// The files pinsim writes into a run folder (`run`, and `render` / `replay` by default):
 /// what `--overwrite` removes before a run, with the temporaries of these names
 /// (NAME.tmp.PID, NAME.crash.PID). Nothing else in the folder is touched.
-extern const char* const kRunFolderFiles[6];
+extern const char* const kRunFolderFiles[7];
 
 class Recorder {
  public:
@@ -32,7 +33,8 @@ class Recorder {
   Recorder& operator=(const Recorder&) = delete;
 
   /// One row per particle: t,particle,x,y,vx,vy. Whole lines only; throws OutputError (the
-  /// file then ends with its last whole line).
+  /// file then ends with its last whole line). With output.format "hdf5", one frame of
+  /// trajectory.h5 instead (Hdf5TrajectoryWriter).
   void write_state(const State& s);
   /// One row per contact; as write_state.
   void write_events(const std::vector<pinsim_event>& events);
@@ -50,6 +52,7 @@ class Recorder {
   std::filesystem::path dir_;
   const Scene& scene_;
   std::unique_ptr<LineFile> traj_;
+  std::unique_ptr<Hdf5TrajectoryWriter> traj_h5_;  ///< instead of traj_ for "hdf5"
   std::unique_ptr<LineFile> events_;
   std::string buf_;
   uint64_t contacts_ = 0;

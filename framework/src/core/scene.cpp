@@ -7,6 +7,7 @@
 
 #include "core/format.hpp"
 #include "core/json_read.hpp"
+#include "core/trajectory_hdf5.hpp"
 #include "core/value_limits.hpp"
 
 namespace fs = std::filesystem;
@@ -178,14 +179,21 @@ nlohmann::json read_backend_scene(const nlohmann::json& d, const Loc& root) {
   return out;
 }
 
-// output: {"every" >= 1}.
+// output: {"every" >= 1, "format": "csv" | "hdf5"}.
 void read_output(const nlohmann::json& d, const Loc& root, Scene& s) {
   if (!d.contains("output")) return;
   const auto& o = d.at("output");
   require_object(o, root / "output");
-  check_keys(o, {"every"}, root / "output");
+  check_keys(o, {"every", "format"}, root / "output");
   s.output_every = read_count_or(o, "every", 1, root / "output");
   if (s.output_every == 0) (root / "output" / "every").fail("must be >= 1, got 0");
+  s.output_format = read_string_or(o, "format", "csv", root / "output");
+  if (s.output_format != "csv" && s.output_format != "hdf5")
+    (root / "output" / "format")
+        .fail("expected \"csv\" or \"hdf5\", got \"" + s.output_format + "\"");
+  if (s.output_format == "hdf5" && !hdf5_supported())
+    (root / "output" / "format")
+        .fail("\"hdf5\" needs a pinsim built with HDF5 (PINSIM_WITH_HDF5=ON); use \"csv\"");
 }
 
 // checks: {"energy_blowup" > 0, "energy_every" >= 1, "kinetic_growth" >= 2 or 0}.

@@ -10,6 +10,7 @@
 
 #include "core/format.hpp"
 #include "core/json_read.hpp"
+#include "core/trajectory_hdf5.hpp"
 
 namespace pinsim {
 namespace fs = std::filesystem;
@@ -85,7 +86,9 @@ Eigen::Vector2d RunData::position(std::size_t i, double t) const {
   return Vec(a.x + w * (b.x - a.x), a.y + w * (b.y - a.y));
 }
 
-bool is_run_dir(const fs::path& dir) { return fs::is_regular_file(dir / "trajectory.csv"); }
+bool is_run_dir(const fs::path& dir) {
+  return fs::is_regular_file(dir / "trajectory.csv") || fs::is_regular_file(dir / "trajectory.h5");
+}
 
 std::vector<fs::path> sub_run_dirs(const fs::path& dir) {
   std::vector<fs::path> out;
@@ -104,12 +107,26 @@ RunData load_run(const fs::path& dir) {
   if (fs::exists(dir / "summary.json")) {
     r.summary = read_json_file(dir / "summary.json");  // errors name the file
   }
-  read_csv(dir / "trajectory.csv", "t,particle,x,y,vx,vy", 6, [&](const std::vector<double>& v) {
-    const auto i = static_cast<std::size_t>(v[1]);
-    if (v[1] < 0 || i > 10000000) throw std::runtime_error("bad particle index");
-    if (r.particles.size() <= i) r.particles.resize(i + 1);
-    r.particles[i].push_back({v[0], v[2], v[3], v[4], v[5]});
-  });
+  if (!fs::exists(dir / "trajectory.csv") && fs::exists(dir / "trajectory.h5")) {
+    // output.format "hdf5": the frames the file says are complete, the same samples the
+    // CSV would hold (exact doubles).
+    const Hdf5Trajectory h = read_hdf5_trajectory(dir / "trajectory.h5");
+    r.particles.assign(h.particles, {});
+    for (std::size_t i = 0; i < h.particles; ++i) {
+      r.particles[i].reserve(h.frames());
+      for (std::size_t f = 0; f < h.frames(); ++f) {
+        const std::size_t k = f * h.particles + i;
+        r.particles[i].push_back({h.t[f], h.x[k], h.y[k], h.vx[k], h.vy[k]});
+      }
+    }
+  } else {
+    read_csv(dir / "trajectory.csv", "t,particle,x,y,vx,vy", 6, [&](const std::vector<double>& v) {
+      const auto i = static_cast<std::size_t>(v[1]);
+      if (v[1] < 0 || i > 10000000) throw std::runtime_error("bad particle index");
+      if (r.particles.size() <= i) r.particles.resize(i + 1);
+      r.particles[i].push_back({v[0], v[2], v[3], v[4], v[5]});
+    });
+  }
   if (fs::exists(dir / "events.csv")) {
     // The obstacle column holds the obstacle's id (or index); other_particle may be empty.
     const fs::path file = dir / "events.csv";

@@ -1,0 +1,282 @@
+#include "core/trajectory_hdf5.hpp"
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "core/output_file.hpp"
+
+#if PINSIM_WITH_HDF5
+#include <hdf5.h>
+#endif
+
+namespace fs = std::filesystem;
+
+namespace pinsim {
+
+#if PINSIM_WITH_HDF5
+
+bool hdf5_supported() { return true; }
+
+namespace {
+
+constexpr const char* kColumns[] = {"x", "y", "vx", "vy"};
+
+/// Closes an HDF5 handle with `close` when it goes out of scope.
+struct Hid {
+  hid_t id = -1;
+  herr_t (*close)(hid_t) = nullptr;
+  Hid() = default;
+  Hid(hid_t i, herr_t (*c)(hid_t)) : id(i), close(c) {}
+  Hid(const Hid&) = delete;
+  Hid& operator=(const Hid&) = delete;
+  Hid(Hid&& o) noexcept : id(o.id), close(o.close) { o.id = -1; }
+  Hid& operator=(Hid&& o) noexcept {
+    reset();
+    id = o.id;
+    close = o.close;
+    o.id = -1;
+    return *this;
+  }
+  ~Hid() { reset(); }
+  void reset() {
+    if (id >= 0 && close) close(id);
+    id = -1;
+  }
+  operator hid_t() const { return id; }
+};
+
+/// Silences HDF5's own error stack printing for the handle's lifetime (errors become
+/// exceptions that name the file).
+struct QuietHdf5 {
+  H5E_auto2_t func = nullptr;
+  void* data = nullptr;
+  QuietHdf5() {
+    H5Eget_auto2(H5E_DEFAULT, &func, &data);
+    H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  }
+  ~QuietHdf5() { H5Eset_auto2(H5E_DEFAULT, func, data); }
+  QuietHdf5(const QuietHdf5&) = delete;
+  QuietHdf5& operator=(const QuietHdf5&) = delete;
+};
+
+void write_string_attr(hid_t obj, const char* name, const std::string& value) {
+  Hid type(H5Tcopy(H5T_C_S1), H5Tclose);
+  H5Tset_size(type, std::max<std::size_t>(1, value.size()));
+  H5Tset_strpad(type, H5T_STR_NULLTERM);
+  Hid space(H5Screate(H5S_SCALAR), H5Sclose);
+  Hid attr(H5Acreate2(obj, name, type, space, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (attr < 0 || H5Awrite(attr, type, value.c_str()) < 0)
+    throw std::runtime_error(std::string("cannot write attribute ") + name);
+}
+
+template <class T>
+void write_scalar_attr(hid_t obj, const char* name, hid_t type, T value) {
+  Hid space(H5Screate(H5S_SCALAR), H5Sclose);
+  Hid attr(H5Acreate2(obj, name, type, space, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
+  if (attr < 0 || H5Awrite(attr, type, &value) < 0)
+    throw std::runtime_error(std::string("cannot write attribute ") + name);
+}
+
+}  // namespace
+
+struct Hdf5TrajectoryWriter::Handles {
+  QuietHdf5 quiet;
+  Hid file, t, cols[4], frames_attr;
+  bool failed = false;
+};
+
+Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t particles,
+                                           const std::string& scene_name, double dt)
+    : h_(std::make_unique<Handles>()), file_(file), particles_(particles) {
+  auto fail = [&](const std::string& what) {
+    h_.reset();
+    throw OutputError(file_.string() + ": cannot create the HDF5 trajectory (" + what + ")");
+  };
+  // The earliest file format (superblock 0, version-1 B-trees): no "file open for write"
+  // flag, so a killed run's file opens without h5clear. Metadata is written only by
+  // H5Fflush (evictions off): between flushes the file on disk is the last flushed one.
+  Hid fapl(H5Pcreate(H5P_FILE_ACCESS), H5Pclose);
+  H5AC_cache_config_t mdc;
+  mdc.version = H5AC__CURR_CACHE_CONFIG_VERSION;
+  if (H5Pget_mdc_config(fapl, &mdc) < 0) fail("metadata cache settings");
+  mdc.evictions_enabled = false;
+  mdc.incr_mode = H5C_incr__off;
+  mdc.flash_incr_mode = H5C_flash_incr__off;
+  mdc.decr_mode = H5C_decr__off;
+  if (H5Pset_mdc_config(fapl, &mdc) < 0) fail("metadata cache settings");
+  h_->file = Hid(H5Fcreate(file.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl), H5Fclose);
+  if (h_->file < 0) fail("H5Fcreate failed");
+
+  // [frames x particles], extendible along the frames. A chunk holds one frame of a
+  // column (or several frames when there are few particles: chunks of >= 8 KB).
+  const hsize_t n = particles;
+  const hsize_t rows = std::clamp<hsize_t>(1024 / std::max<hsize_t>(n, 1), 1, 1024);
+  Hid dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  const hsize_t dims[2] = {0, n}, maxdims[2] = {H5S_UNLIMITED, n > 0 ? n : H5S_UNLIMITED},
+                chunk[2] = {rows, std::max<hsize_t>(n, 1)};
+  Hid space(H5Screate_simple(2, dims, maxdims), H5Sclose);
+  if (H5Pset_chunk(dcpl, 2, chunk) < 0) fail("chunk layout");
+  for (int c = 0; c < 4; ++c) {
+    h_->cols[c] = Hid(
+        H5Dcreate2(h_->file, kColumns[c], H5T_IEEE_F64LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
+        H5Dclose);
+    if (h_->cols[c] < 0) fail(std::string("dataset /") + kColumns[c]);
+  }
+  const hsize_t tdims[1] = {0}, tmax[1] = {H5S_UNLIMITED}, tchunk[1] = {1024};
+  Hid tspace(H5Screate_simple(1, tdims, tmax), H5Sclose);
+  Hid tdcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  if (H5Pset_chunk(tdcpl, 1, tchunk) < 0) fail("chunk layout");
+  h_->t = Hid(H5Dcreate2(h_->file, "t", H5T_IEEE_F64LE, tspace, H5P_DEFAULT, tdcpl, H5P_DEFAULT),
+              H5Dclose);
+  if (h_->t < 0) fail("dataset /t");
+  try {
+    write_string_attr(h_->file, "format", "pinsim trajectory 1");
+    write_string_attr(h_->file, "scene", scene_name);
+    write_scalar_attr(h_->file, "dt", H5T_NATIVE_DOUBLE, dt);
+    write_string_attr(h_->file, "units", "t: s; x, y: m; vx, vy: m/s");
+    write_string_attr(h_->file, "layout",
+                      "/t [frames]; /x, /y, /vx, /vy [frames x particles], float64; read the "
+                      "first frames_complete frames");
+    write_scalar_attr(h_->file, "particles", H5T_NATIVE_UINT64, static_cast<uint64_t>(n));
+    write_scalar_attr(h_->file, "frames_complete", H5T_NATIVE_UINT64, uint64_t{0});
+  } catch (const std::exception& e) {
+    fail(e.what());
+  }
+  h_->frames_attr = Hid(H5Aopen(h_->file, "frames_complete", H5P_DEFAULT), H5Aclose);
+  if (h_->frames_attr < 0 || H5Fflush(h_->file, H5F_SCOPE_LOCAL) < 0) fail("H5Fflush failed");
+  buf_.resize(particles_);
+}
+
+Hdf5TrajectoryWriter::~Hdf5TrajectoryWriter() = default;
+
+void Hdf5TrajectoryWriter::write(const State& s) {
+  if (!h_ || h_->failed)
+    throw OutputError(file_.string() + ": cannot write (an earlier write failed)");
+  if (s.size() != particles_)
+    throw OutputError(file_.string() + ": the particle count changed during the run");
+  auto fail = [&](const char* what) {
+    h_->failed = true;
+    throw OutputError(file_.string() + ": cannot write frame " + std::to_string(frames_) + " (" +
+                      what + ")");
+  };
+  const hsize_t f = frames_, n = particles_;
+  // 1. the columns, 2. /t, 3. frames_complete, 4. flush: a reader of the flushed file
+  // trusts the first frames_complete frames (and never more than each dataset holds).
+  const hsize_t dims[2] = {f + 1, n}, start[2] = {f, 0}, count[2] = {1, n};
+  Hid mem(H5Screate_simple(1, &count[1], nullptr), H5Sclose);
+  for (int c = 0; c < 4; ++c) {
+    const double* src = (c < 2 ? s.x.data() : s.v.data()) + (c & 1);
+    for (std::size_t i = 0; i < particles_; ++i) buf_[i] = src[2 * i];
+    if (H5Dset_extent(h_->cols[c], dims) < 0) fail("H5Dset_extent");
+    if (n == 0) continue;
+    Hid fspace(H5Dget_space(h_->cols[c]), H5Sclose);
+    if (fspace < 0 ||
+        H5Sselect_hyperslab(fspace, H5S_SELECT_SET, start, nullptr, count, nullptr) < 0 ||
+        H5Dwrite(h_->cols[c], H5T_NATIVE_DOUBLE, mem, fspace, H5P_DEFAULT, buf_.data()) < 0)
+      fail("H5Dwrite");
+  }
+  const hsize_t tdims[1] = {f + 1}, one[1] = {1};
+  if (H5Dset_extent(h_->t, tdims) < 0) fail("H5Dset_extent");
+  Hid tspace(H5Dget_space(h_->t), H5Sclose);
+  Hid tmem(H5Screate_simple(1, one, nullptr), H5Sclose);
+  if (tspace < 0 ||
+      H5Sselect_hyperslab(tspace, H5S_SELECT_SET, &start[0], nullptr, one, nullptr) < 0 ||
+      H5Dwrite(h_->t, H5T_NATIVE_DOUBLE, tmem, tspace, H5P_DEFAULT, &s.t) < 0)
+    fail("H5Dwrite");
+  const uint64_t complete = f + 1;
+  if (H5Awrite(h_->frames_attr, H5T_NATIVE_UINT64, &complete) < 0) fail("frames_complete");
+  if (H5Fflush(h_->file, H5F_SCOPE_LOCAL) < 0) fail("H5Fflush");
+  ++frames_;
+}
+
+void Hdf5TrajectoryWriter::close() {
+  if (!h_) return;
+  const bool failed = h_->failed;
+  h_->frames_attr.reset();
+  h_->t.reset();
+  for (auto& c : h_->cols) c.reset();
+  const herr_t r = h_->file >= 0 ? H5Fclose(h_->file) : 0;
+  h_->file.id = -1;
+  h_.reset();
+  if (r < 0 && !failed) throw OutputError(file_.string() + ": cannot close (H5Fclose failed)");
+}
+
+Hdf5Trajectory read_hdf5_trajectory(const fs::path& file) {
+  QuietHdf5 quiet;
+  auto fail = [&](const std::string& what) -> void {
+    throw std::runtime_error(file.string() + ": " + what);
+  };
+  Hid f(H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT), H5Fclose);
+  if (f < 0) fail("cannot open as HDF5");
+  uint64_t complete = 0;
+  {
+    Hid a(H5Aopen(f, "frames_complete", H5P_DEFAULT), H5Aclose);
+    if (a < 0 || H5Aread(a, H5T_NATIVE_UINT64, &complete) < 0)
+      fail("no frames_complete attribute (not a pinsim trajectory)");
+  }
+  Hdf5Trajectory out;
+  auto open = [&](const char* name, int rank, hsize_t* dims) {
+    Hid d(H5Dopen2(f, name, H5P_DEFAULT), H5Dclose);
+    if (d < 0) fail(std::string("no dataset /") + name);
+    Hid sp(H5Dget_space(d), H5Sclose);
+    if (H5Sget_simple_extent_ndims(sp) != rank)
+      fail(std::string("/") + name + " has rank " + std::to_string(H5Sget_simple_extent_ndims(sp)) +
+           ", expected " + std::to_string(rank));
+    H5Sget_simple_extent_dims(sp, dims, nullptr);
+    return d;
+  };
+  hsize_t tdims[1] = {0};
+  Hid t = open("t", 1, tdims);
+  hsize_t frames = std::min<hsize_t>(complete, tdims[0]);
+  Hid cols[4];
+  hsize_t n = 0;
+  for (int c = 0; c < 4; ++c) {
+    hsize_t d[2] = {0, 0};
+    cols[c] = open(kColumns[c], 2, d);
+    if (c > 0 && d[1] != n) fail(std::string("/") + kColumns[c] + " has another particle count");
+    n = d[1];
+    frames = std::min(frames, d[0]);
+  }
+  out.particles = n;
+  auto read = [&](hid_t d, std::vector<double>& v, int rank, const hsize_t* count) {
+    v.resize(rank == 1 ? count[0] : count[0] * count[1]);
+    if (v.empty()) return;
+    const hsize_t start[2] = {0, 0};
+    Hid fs(H5Dget_space(d), H5Sclose);
+    Hid ms(H5Screate_simple(rank, count, nullptr), H5Sclose);
+    if (H5Sselect_hyperslab(fs, H5S_SELECT_SET, start, nullptr, count, nullptr) < 0 ||
+        H5Dread(d, H5T_NATIVE_DOUBLE, ms, fs, H5P_DEFAULT, v.data()) < 0)
+      fail("cannot read the first " + std::to_string(frames) + " frames");
+  };
+  const hsize_t tc[1] = {frames}, cc[2] = {frames, n};
+  read(t, out.t, 1, tc);
+  read(cols[0], out.x, 2, cc);
+  read(cols[1], out.y, 2, cc);
+  read(cols[2], out.vx, 2, cc);
+  read(cols[3], out.vy, 2, cc);
+  return out;
+}
+
+#else  // !PINSIM_WITH_HDF5
+
+bool hdf5_supported() { return false; }
+
+struct Hdf5TrajectoryWriter::Handles {};
+
+Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t, const std::string&,
+                                           double)
+    : file_(file) {
+  throw OutputError(file.string() + ": this pinsim was built without HDF5 (PINSIM_WITH_HDF5=OFF)");
+}
+Hdf5TrajectoryWriter::~Hdf5TrajectoryWriter() = default;
+void Hdf5TrajectoryWriter::write(const State&) {}
+void Hdf5TrajectoryWriter::close() {}
+
+Hdf5Trajectory read_hdf5_trajectory(const fs::path& file) {
+  throw std::runtime_error(file.string() +
+                           ": this pinsim was built without HDF5 (PINSIM_WITH_HDF5=OFF)");
+}
+
+#endif
+
+}  // namespace pinsim

@@ -1,0 +1,168 @@
+#!/usr/bin/env python3
+"""trajectory.h5 (scene "output": {"format": "hdf5"}) against trajectory.csv, end to end.
+
+1. A finished run: every frame of the HDF5 file holds the same doubles (same bits) as the
+   CSV run of the same scene (the CSV prints the shortest decimal that reads back as the
+   same double, so float() of its text is exact); h5dump reads the file; render (SVG and
+   PNG) and replay produce the same bytes from the CSV and the HDF5 run folders.
+2. kill -9 in the middle of runs (three moments): the file opens with h5py and h5dump,
+   frames_complete > 0, and the first frames_complete frames equal a CSV run's values
+   (the CSV run stops at the same time); `pinsim render` reads the killed folder.
+3. output.format "xml": exit 2 and a message naming output.format.
+
+Usage: test_hdf5_trajectory.py PINSIM_BIN WORK_DIR
+"""
+import csv
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+
+import h5py
+import numpy as np
+
+PINSIM, WORK = sys.argv[1], sys.argv[2]
+shutil.rmtree(WORK, ignore_errors=True)
+os.makedirs(WORK)
+
+SCENE = {
+    "name": "h5_chain",
+    "time": {"dt": 0.001, "duration": 0.2},
+    "integrator": "symplectic_euler",
+    "bodies": [{"type": "strand", "name": "chain", "root": [0, 1], "direction": [1, 0],
+                "count": 12, "segment_length": 0.1, "mass": 0.1, "pin": [0]}],
+    "forces": [{"type": "gravity"},
+               {"type": "damped_spring", "params": {"ks": 500, "kd": 0.5},
+                "elements": {"body": "chain", "set": "edges"}}],
+    "obstacles": [{"id": "floor",
+                   "shape": {"type": "box", "center": [0, -0.5], "half_size": [4, 0.5]}}],
+    "output": {"every": 2},
+}
+failures = []
+
+
+def check(cond, what):
+    if not cond:
+        failures.append(what)
+        print("FAIL:", what)
+
+
+def run(*args, **kw):
+    return subprocess.run([PINSIM, *args], capture_output=True, text=True, **kw)
+
+
+def write_scene(name, scene):
+    path = os.path.join(WORK, name)
+    with open(path, "w") as f:
+        json.dump(scene, f)
+    return path
+
+
+def csv_frames(folder):
+    """{t: {particle: (x, y, vx, vy)}} from trajectory.csv, exact doubles."""
+    frames = {}
+    with open(os.path.join(folder, "trajectory.csv")) as f:
+        for row in csv.DictReader(f):
+            frames.setdefault(float(row["t"]), {})[int(row["particle"])] = tuple(
+                float(row[k]) for k in ("x", "y", "vx", "vy"))
+    return frames
+
+
+def compare(h5file, csv_folder, frames):
+    """The first `frames` frames of h5file against the CSV run's, bit for bit."""
+    ref = csv_frames(csv_folder)
+    times = sorted(ref)
+    with h5py.File(h5file, "r") as f:
+        t = f["t"][:frames]
+        cols = [f[k][:frames, :] for k in ("x", "y", "vx", "vy")]
+    check(len(times) >= frames, f"{csv_folder}: {len(times)} CSV frames < {frames}")
+    for i in range(min(frames, len(times))):
+        check(t[i] == times[i], f"frame {i}: t {t[i]!r} != CSV {times[i]!r}")
+        for p, vals in ref[times[i]].items():
+            got = tuple(c[i, p] for c in cols)
+            if got != vals:
+                check(False, f"frame {i} particle {p}: {got} != CSV {vals}")
+                return
+
+
+# 1. Finished runs.
+scene_csv = write_scene("csv.json", SCENE)
+h5scene = dict(SCENE, output={"every": 2, "format": "hdf5"})
+scene_h5 = write_scene("h5.json", h5scene)
+csv_dir, h5_dir = os.path.join(WORK, "csv", "run"), os.path.join(WORK, "h5", "run")
+for scene, out in ((scene_csv, csv_dir), (scene_h5, h5_dir)):
+    r = run("-q", "run", scene, "--out", out)
+    check(r.returncode == 0, f"run {scene}: exit {r.returncode}: {r.stderr}")
+h5file = os.path.join(h5_dir, "trajectory.h5")
+check(os.path.exists(h5file) and not os.path.exists(os.path.join(h5_dir, "trajectory.csv")),
+      "the hdf5 run writes trajectory.h5 and no trajectory.csv")
+with h5py.File(h5file, "r") as f:
+    n = int(f.attrs["frames_complete"])
+    check(n == 101, f"frames_complete {n}, expected 0.2 / 0.001 / 2 + 1 = 101")
+    check(f["x"].shape == (n, 12) and f["t"].shape == (n,), f"shapes {f['x'].shape}")
+    check(f["x"].dtype == np.float64, "float64 datasets")
+    check(int(f.attrs["particles"]) == 12, "particles attribute")
+    check(float(f.attrs["dt"]) == 0.001, "dt attribute")
+    check(f.attrs["scene"] in (b"h5_chain", "h5_chain"), f"scene attribute {f.attrs['scene']}")
+compare(h5file, csv_dir, 101)
+d = subprocess.run(["h5dump", "-d", "/x", h5file], capture_output=True, text=True)
+check(d.returncode == 0 and "DATASPACE  SIMPLE { ( 101, 12 )" in d.stdout,
+      f"h5dump /x: exit {d.returncode} {d.stdout[:300]} {d.stderr[:300]}")
+for kind, args in (("render svg", ["render", "{dir}", "--out", "{out}.svg"]),
+                   ("render png", ["render", "{dir}", "--out", "{out}.png"]),
+                   ("replay", ["replay", "{dir}", "--out", "{out}.html"])):
+    outs = []
+    for label, folder in (("csv", csv_dir), ("h5", h5_dir)):
+        stem = os.path.join(WORK, f"{label}_{kind.replace(' ', '_')}")
+        r = run("-q", *[a.format(dir=folder, out=stem) for a in args])
+        check(r.returncode == 0, f"{kind} {label}: exit {r.returncode}: {r.stderr}")
+        ext = args[-1].rsplit(".", 1)[1]
+        outs.append(open(f"{stem}.{ext}", "rb").read() if r.returncode == 0 else b"")
+    check(outs[0] == outs[1] and len(outs[0]) > 1000,
+          f"{kind}: the CSV and HDF5 run folders give different output")
+
+# 2. kill -9 mid-run (a long run, every step written), at three moments.
+long_scene = dict(SCENE, time={"dt": 0.0001, "duration": 1000.0},
+                  output={"every": 1, "format": "hdf5"})
+long_path = write_scene("long.json", long_scene)
+for k, delay in enumerate((0.7, 1.3, 2.1)):
+    out = os.path.join(WORK, f"killed{k}")
+    p = subprocess.Popen([PINSIM, "-q", "run", long_path, "--out", out],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    time.sleep(delay)
+    p.send_signal(signal.SIGKILL)
+    p.wait()
+    f5 = os.path.join(out, "trajectory.h5")
+    d = subprocess.run(["h5dump", "-A", f5], capture_output=True, text=True)
+    check(d.returncode == 0 and "frames_complete" in d.stdout,
+          f"kill {k}: h5dump -A: exit {d.returncode}: {d.stderr[:300]}")
+    try:
+        with h5py.File(f5, "r") as f:
+            n = int(f.attrs["frames_complete"])
+            shapes = [f[c].shape[0] for c in ("t", "x", "y", "vx", "vy")]
+    except OSError as e:
+        check(False, f"kill {k}: h5py cannot open the file: {e}")
+        continue
+    print(f"kill {k} after {delay} s: frames_complete {n}, dataset frames {shapes}")
+    check(n > 10 and all(s >= n for s in shapes), f"kill {k}: frames {n} / {shapes}")
+    # The same scene as CSV, stopped after frame n - 1 (t = (n - 1) dt).
+    ref = os.path.join(WORK, f"killed{k}_csv")
+    r = run("-q", "run", long_path, "--out", ref, "--set", "output.format=csv",
+            "--set", f"time.duration={(n - 1) * 0.0001!r}")
+    check(r.returncode == 0, f"kill {k}: csv run: {r.stderr}")
+    compare(f5, ref, n)
+    r = run("-q", "render", out, "--out", os.path.join(WORK, f"killed{k}.png"))
+    check(r.returncode == 0, f"kill {k}: render of the killed run: {r.stderr}")
+
+# 3. A bad format.
+bad = write_scene("bad.json", dict(SCENE, output={"format": "xml"}))
+r = run("-q", "run", bad, "--out", os.path.join(WORK, "bad"))
+check(r.returncode == 2 and "output.format" in r.stderr and "hdf5" in r.stderr,
+      f"bad format: exit {r.returncode}: {r.stderr}")
+
+shutil.rmtree(WORK, ignore_errors=True) if not failures else None
+print("FAILED:" if failures else "ok", *failures, sep="\n")
+sys.exit(1 if failures else 0)
