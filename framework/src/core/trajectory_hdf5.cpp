@@ -61,7 +61,7 @@ struct QuietHdf5 {
 
 void write_string_attr(hid_t obj, const char* name, const std::string& value) {
   Hid type(H5Tcopy(H5T_C_S1), H5Tclose);
-  H5Tset_size(type, std::max<std::size_t>(1, value.size()));
+  H5Tset_size(type, value.size() + 1);  // with the terminating NUL
   H5Tset_strpad(type, H5T_STR_NULLTERM);
   Hid space(H5Screate(H5S_SCALAR), H5Sclose);
   Hid attr(H5Acreate2(obj, name, type, space, H5P_DEFAULT, H5P_DEFAULT), H5Aclose);
