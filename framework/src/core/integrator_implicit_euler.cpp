@@ -6,6 +6,8 @@
 #include <Eigen/SparseLU>
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <vector>
 
 #include "core/integrators.hpp"
 #include "core/simulation.hpp"
@@ -20,11 +22,13 @@ namespace {
 /// harmonic oscillator the energy shrinks by exactly 1/(1 + (h w)^2) per step, for any h.
 /// Pinned dofs (inv_mass 0) keep dv = 0: their rows and columns become the identity.
 /// The system is symmetric (K and D are for conservative and spring-damping forces) and is
-/// solved by conjugate gradients with a Jacobi preconditioner to a relative residual of
-/// 1e-12; if CG fails (an indefinite K from compressed springs can do that) a sparse LU
-/// solves it instead. If that fails too (a singular system, or a residual above 1e-8 of
-/// |b|), the step throws NumericError (solver_failure) rather than use an unconverged
-/// velocity. stats() reports the solves for summary.json.
+/// solved by conjugate gradients with a Jacobi (diagonal) preconditioner to a relative
+/// residual of 1e-12, started from the last step's dv (warm start: a smooth motion changes
+/// dv little from step to step). A is assembled in a sparsity pattern built once (rebuilt
+/// only if the forces' entries move): no sorting or allocation per step; if CG fails (an indefinite
+/// K from compressed springs can do that) a sparse LU solves it instead. If that fails too (a
+/// singular system, or a residual above 1e-8 of |b|), the step throws NumericError (solver_failure)
+/// rather than use an unconverged velocity. stats() reports the solves for summary.json.
 ///
 /// A converged solve can still be meaningless. CG stops at |A dv - b| <= 1e-12 |b|, and a
 /// very stiff force makes |b| huge (h^2 K v) while the soft directions of A keep eigenvalues
@@ -42,36 +46,38 @@ namespace {
 /// v_{n+1} ~ 0 by cancellation, v_n + dv.)
 class ImplicitEuler : public Integrator {
  public:
+  explicit ImplicitEuler(const ImplicitEulerOptions& o) : options_(o) {}
+
   void step(Simulation& sim, double h) override {
     State& s = sim.state();
     sim.compute_forces(s, f_);
-    sim.assemble_jacobians(s, K_, D_);
+    sim.jacobian_triplets(s, tx_, tv_);
     const Eigen::Index n = 2 * static_cast<Eigen::Index>(s.size());
     const Eigen::Map<const Eigen::VectorXd> f(f_.data(), n), v0(s.v.data(), n);
 
-    Eigen::VectorXd m(n);
+    if (m_.size() != n) m_.resize(n);
     for (Eigen::Index i = 0; i < n; ++i) {
       const double w = s.inv_mass[i / 2];
-      m[i] = w > 0.0 ? 1.0 / w : 0.0;
+      m_[i] = w > 0.0 ? 1.0 / w : 0.0;
     }
-    Eigen::VectorXd b = h * (f + h * (K_ * v0));
-    A_ = -h * D_ - (h * h) * K_;
-    // Zero the pinned rows and columns, then add M (1 on pinned diagonals).
-    A_.prune([&](Eigen::Index r, Eigen::Index c, double) { return m[r] > 0.0 && m[c] > 0.0; });
-    Eigen::SparseMatrix<double> M(n, n);
-    std::vector<Eigen::Triplet<double>> diag;
-    diag.reserve(static_cast<std::size_t>(n));
-    for (Eigen::Index i = 0; i < n; ++i) {
-      diag.emplace_back(static_cast<int>(i), static_cast<int>(i), m[i] > 0.0 ? m[i] : 1.0);
-      if (!(m[i] > 0.0)) b[i] = 0.0;
-    }
-    M.setFromTriplets(diag.begin(), diag.end());
-    A_ += M;
-
+    const Eigen::VectorXd& m = m_;
+    // A, and K v_n straight from the entries; b = h (f_n + h K v_n), pinned rows zeroed.
+    if (kv_.size() != n) kv_.resize(n);
+    assemble(n, h, v0);
+    if (b_.size() != n) b_.resize(n);
+    b_ = h * (f + h * kv_);
+    for (Eigen::Index i = 0; i < n; ++i)
+      if (!(m[i] > 0.0)) b_[i] = 0.0;
+    const Eigen::VectorXd& b = b_;
     cg_.setTolerance(1e-12);
-    cg_.setMaxIterations(std::max<Eigen::Index>(100, 4 * n));
+    cg_.setMaxIterations(options_.cg_max_iterations > 0 ? options_.cg_max_iterations
+                                                        : std::max<Eigen::Index>(100, 4 * n));
     cg_.compute(A_);
-    Eigen::VectorXd dv = cg_.solve(b);
+    // Warm start from the last step's dv (the same size: same particles); the first step
+    // starts from 0. Deterministic: the guess is the previous step's result.
+    if (dv_.size() != n) dv_.setZero(n);
+    dv_ = cg_.solveWithGuess(b, dv_);
+    Eigen::VectorXd& dv = dv_;
     ++solves_;
     cg_iterations_ += static_cast<uint64_t>(cg_.iterations());
     cg_iterations_max_ = std::max(cg_iterations_max_, static_cast<uint64_t>(cg_.iterations()));
@@ -103,6 +109,86 @@ class ImplicitEuler : public Integrator {
     worst_residual_ = std::max(worst_residual_, residual);
     Eigen::Map<Eigen::VectorXd>(s.v.data(), n) += dv;
     sim.drift(s, h);
+  }
+
+  /// A = M - h D - h^2 K with the pinned rows and columns replaced by the identity, in the
+  /// fixed sparsity pattern of A_: each entry the forces emit adds into its slot of A_'s
+  /// values (found once, by pattern()), so a step sorts and allocates nothing. The pattern
+  /// is rebuilt when the entries' positions or the pinned dofs change. Also kv_ = K v0.
+  /// One pass over each list of entries (they are large: 16 per spring): check the
+  /// position, add into the slot (and into K v0).
+  void assemble(Eigen::Index n, double h, const Eigen::Map<const Eigen::VectorXd>& v0) {
+    if (!same_size_and_pins(n)) pattern(n);
+    ksum_.setZero();
+    dsum_.setZero();
+    kv_.setZero();
+    if (!scatter(tx_, key_x_, slot_x_, ksum_, n, &v0) ||
+        !scatter(tv_, key_v_, slot_v_, dsum_, n, nullptr)) {
+      pattern(n);
+      return assemble(n, h, v0);
+    }
+    double* a = A_.valuePtr();
+    for (Eigen::Index j = 0; j < A_.nonZeros(); ++j) a[j] = (-h * dsum_[j]) - (h * h) * ksum_[j];
+    for (Eigen::Index i = 0; i < n; ++i) a[diag_slot_[i]] += m_[i] > 0.0 ? m_[i] : 1.0;
+  }
+
+  /// Adds the entries into `sum` by slot (and K v0 into kv_ if v0); false, with nothing
+  /// finished, if an entry's position differs from the pattern's.
+  bool scatter(const std::vector<Eigen::Triplet<double>>& t, const std::vector<int64_t>& key,
+               const std::vector<int64_t>& slot, Eigen::VectorXd& sum, Eigen::Index n,
+               const Eigen::Map<const Eigen::VectorXd>* v0) {
+    for (std::size_t k = 0; k < t.size(); ++k) {
+      const Eigen::Triplet<double>& e = t[k];
+      if (key[k] != e.row() * n + e.col()) return false;
+      if (slot[k] >= 0) sum[slot[k]] += e.value();
+      if (v0) kv_[e.row()] += e.value() * (*v0)[e.col()];
+    }
+    return true;
+  }
+
+  bool same_size_and_pins(Eigen::Index n) const {
+    if (A_.rows() != n || slot_x_.size() != tx_.size() || slot_v_.size() != tv_.size())
+      return false;
+    for (Eigen::Index i = 0; i < n; ++i)
+      if ((m_[i] > 0.0) != free_[static_cast<std::size_t>(i)]) return false;
+    return true;
+  }
+
+  void pattern(Eigen::Index n) {
+    free_.assign(static_cast<std::size_t>(n), false);
+    for (Eigen::Index i = 0; i < n; ++i) free_[static_cast<std::size_t>(i)] = m_[i] > 0.0;
+    std::vector<Eigen::Triplet<double>> pat;
+    pat.reserve(tx_.size() + tv_.size() + static_cast<std::size_t>(n));
+    auto kept = [&](const Eigen::Triplet<double>& e) {
+      return m_[e.row()] > 0.0 && m_[e.col()] > 0.0;
+    };
+    for (const auto* t : {&tx_, &tv_})
+      for (const auto& e : *t)
+        if (kept(e)) pat.emplace_back(e.row(), e.col(), 0.0);
+    for (Eigen::Index i = 0; i < n; ++i) pat.emplace_back(i, i, 0.0);
+    A_.resize(n, n);
+    A_.setFromTriplets(pat.begin(), pat.end());
+    A_.makeCompressed();
+    auto slot = [&](Eigen::Index r, Eigen::Index c) -> int64_t {
+      const int* first = A_.innerIndexPtr() + A_.outerIndexPtr()[c];
+      const int* last = A_.innerIndexPtr() + A_.outerIndexPtr()[c + 1];
+      return std::lower_bound(first, last, static_cast<int>(r)) - A_.innerIndexPtr();
+    };
+    auto slots = [&](const std::vector<Eigen::Triplet<double>>& t, std::vector<int64_t>& out,
+                     std::vector<int64_t>& key) {
+      out.resize(t.size());
+      key.resize(t.size());
+      for (std::size_t k = 0; k < t.size(); ++k) {
+        out[k] = kept(t[k]) ? slot(t[k].row(), t[k].col()) : -1;
+        key[k] = t[k].row() * n + t[k].col();
+      }
+    };
+    slots(tx_, slot_x_, key_x_);
+    slots(tv_, slot_v_, key_v_);
+    diag_slot_.resize(static_cast<std::size_t>(n));
+    for (Eigen::Index i = 0; i < n; ++i) diag_slot_[static_cast<std::size_t>(i)] = slot(i, i);
+    ksum_.resize(A_.nonZeros());
+    dsum_.resize(A_.nonZeros());
   }
 
   /// Refuses a solve whose velocity error bound (sum r_i^2 / m_i)^1/2 exceeds
@@ -169,6 +255,8 @@ class ImplicitEuler : public Integrator {
   nlohmann::json stats() const override {
     return {
         {"linear_solves", solves_},
+        {"preconditioner", "jacobi"},
+        {"warm_start", true},
         {"cg_iterations_per_solve",
          solves_ > 0 ? static_cast<double>(cg_iterations_) / static_cast<double>(solves_) : 0.0},
         {"cg_iterations_max", cg_iterations_max_},
@@ -177,15 +265,26 @@ class ImplicitEuler : public Integrator {
   }
 
  private:
+  ImplicitEulerOptions options_;
+  Eigen::VectorXd dv_;  ///< the last step's velocity change: the next solve's first guess
   uint64_t solves_ = 0, cg_iterations_ = 0, cg_iterations_max_ = 0, lu_fallbacks_ = 0;
   double worst_residual_ = 0.0;
   Eigen::Matrix2Xd f_;
-  Eigen::SparseMatrix<double> K_, D_, A_;
+  std::vector<Eigen::Triplet<double>> tx_, tv_;  ///< df/dx, df/dv entries (kept capacity)
+  Eigen::VectorXd m_, kv_, b_;                   ///< masses (0: pinned), K v_n, right side
+  // The pattern of A_: the slot of each entry in A_'s values (-1: a pinned row or column),
+  // the entries' positions (row * n + col) and free dofs it was built for, each diagonal's slot.
+  std::vector<int64_t> slot_x_, slot_v_, key_x_, key_v_, diag_slot_;
+  std::vector<bool> free_;
+  Eigen::VectorXd ksum_, dsum_;  ///< per slot: sum of df/dx, of df/dv
+  Eigen::SparseMatrix<double> A_;
   Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg_;
 };
 
 }  // namespace
 
-std::unique_ptr<Integrator> make_implicit_euler() { return std::make_unique<ImplicitEuler>(); }
+std::unique_ptr<Integrator> make_implicit_euler(const ImplicitEulerOptions& options) {
+  return std::make_unique<ImplicitEuler>(options);
+}
 
 }  // namespace pinsim

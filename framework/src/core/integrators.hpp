@@ -43,7 +43,11 @@ std::unique_ptr<Integrator> make_explicit_euler();
 /// Classical fourth-order Runge-Kutta; the position update goes through the backend
 /// (integrator_rk4.cpp).
 std::unique_ptr<Integrator> make_rk4();
+/// Settings of implicit Euler's linear solve (tests force a fallback with them).
+struct ImplicitEulerOptions {
+  long cg_max_iterations = 0;  ///< 0: max(100, 4 x dofs)
+};
 /// Linearized backward Euler of Baraff & Witkin 1998 (integrator_implicit_euler.cpp).
-std::unique_ptr<Integrator> make_implicit_euler();
+std::unique_ptr<Integrator> make_implicit_euler(const ImplicitEulerOptions& options = {});
 
 }  // namespace pinsim

@@ -106,6 +106,17 @@ void Simulation::assemble_jacobians(const State& s, Eigen::SparseMatrix<double>&
                                     Eigen::SparseMatrix<double>& dfdv) {
   const auto n = static_cast<Eigen::Index>(2 * s.size());
   std::vector<Eigen::Triplet<double>> tx, tv;
+  jacobian_triplets(s, tx, tv);
+  dfdx.resize(n, n);
+  dfdv.resize(n, n);
+  dfdx.setFromTriplets(tx.begin(), tx.end());
+  dfdv.setFromTriplets(tv.begin(), tv.end());
+}
+
+void Simulation::jacobian_triplets(const State& s, std::vector<Eigen::Triplet<double>>& tx,
+                                   std::vector<Eigen::Triplet<double>>& tv) {
+  tx.clear();
+  tv.clear();
   const pinsim_triplet_sink sx{&tx, &add_triplet}, sv{&tv, &add_triplet};
   const pinsim_state_view view = s.view();
   if (fd_warned_.size() != forces_.size()) fd_warned_.assign(forces_.size(), false);
@@ -126,10 +137,6 @@ void Simulation::assemble_jacobians(const State& s, Eigen::SparseMatrix<double>&
       if (!has_v && need_v) fd_jacobian(f, s, true, tv);
     }
   }
-  dfdx.resize(n, n);
-  dfdv.resize(n, n);
-  dfdx.setFromTriplets(tx.begin(), tx.end());
-  dfdv.setFromTriplets(tv.begin(), tv.end());
   ++jacobian_evals_;
 }
 

@@ -87,6 +87,11 @@ class Simulation {
   /// left zero (their dofs never move).
   void assemble_jacobians(const State& s, Eigen::SparseMatrix<double>& dfdx,
                           Eigen::SparseMatrix<double>& dfdv);
+  /// The entries assemble_jacobians sums, as the forces emit them (same order every call
+  /// for the same forces): df/dx into tx, df/dv into tv (both cleared first; their capacity
+  /// is kept, so a caller that reuses them allocates nothing). Counts as one evaluation.
+  void jacobian_triplets(const State& s, std::vector<Eigen::Triplet<double>>& tx,
+                         std::vector<Eigen::Triplet<double>>& tv);
   /// The force whose Jacobian weighs most in implicit Euler's system M - h df/dv - h^2 df/dx
   /// at s: the largest (h^2 |df/dx| + h |df/dv|) / m over the entries of free rows (the
   /// square of h w for a spring), returned in `weight`; -1 if no force has a Jacobian entry.

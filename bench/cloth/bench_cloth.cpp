@@ -1,0 +1,109 @@
+// A 100 x 100 cloth (10,000 particles, top row pinned, damped springs on the grid edges and
+// shears, gravity; dt = 1 ms): the cost of one step with symplectic Euler and with implicit
+// Euler, and the cost of writing one trajectory frame of its 10,000 particles (CSV and
+// HDF5) against one symplectic step. Prints CSV lines "figure,value,unit" (medians of
+// repeats, thread CPU time; ratios from the same run). Not a test: figures for docs/bench_and_stress.md.
+//
+// Usage: pinsim_bench_cloth [n=100] [out_dir=/tmp/pinsim_bench_cloth]
+#include <algorithm>
+#include <ctime>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <functional>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <vector>
+
+#include "core/plugin_loader.hpp"
+#include "core/recorder.hpp"
+#include "core/scene.hpp"
+#include "core/simulation.hpp"
+#include "core/trajectory_hdf5.hpp"
+
+namespace {
+
+nlohmann::json cloth_scene(int n, const std::string& integrator, const std::string& format) {
+  nlohmann::json pin = nlohmann::json::array();
+  for (int i = 0; i < n; ++i) pin.push_back((n - 1) * n + i);  // the top row
+  nlohmann::json doc = nlohmann::json::parse(R"({"name": "cloth",
+    "time": {"dt": 0.001, "duration": 1.0}, "backend": {"name": "sdf"},
+    "bodies": [{"type": "grid_blob", "name": "cloth", "origin": [0, 0],
+                "spacing": 0.01, "total_mass": 10.0, "radius": 0.002}],
+    "forces": [{"type": "gravity", "params": {"g": [0, -9.81]}},
+               {"type": "damped_spring", "params": {"ks": 50, "kd": 0.01},
+                "elements": {"body": "cloth", "set": "edges"}},
+               {"type": "damped_spring", "params": {"ks": 20, "kd": 0.005},
+                "elements": {"body": "cloth", "set": "shear"}}]})");
+  doc["integrator"] = integrator;
+  doc["bodies"][0]["nx"] = n;
+  doc["bodies"][0]["ny"] = n;
+  doc["bodies"][0]["pin"] = pin;
+  doc["output"] = {{"format", format}};
+  return doc;
+}
+
+/// This thread's CPU time, ms (wall time on a loaded shared machine mostly measures the
+/// other processes).
+double cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_THREAD_CPUTIME_ID, &ts);
+  return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
+}
+
+/// Median thread CPU milliseconds of `fn` over `repeats` calls (after `warm` untimed calls).
+double median_ms(const std::function<void()>& fn, int repeats, int warm) {
+  for (int i = 0; i < warm; ++i) fn();
+  std::vector<double> t;
+  for (int i = 0; i < repeats; ++i) {
+    const double a = cpu_ms();
+    fn();
+    t.push_back(cpu_ms() - a);
+  }
+  std::nth_element(t.begin(), t.begin() + repeats / 2, t.end());
+  return t[static_cast<std::size_t>(repeats / 2)];
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const int n = argc > 1 ? std::atoi(argv[1]) : 100;
+  const std::filesystem::path out = argc > 2 ? argv[2] : "/tmp/pinsim_bench_cloth";
+  pinsim::PluginLoader loader(pinsim::plugin_search_dirs());
+  std::printf("figure,value,unit\nparticles,%d,\n", n * n);
+
+  auto step_ms = [&](const char* integrator, int repeats) {
+    const pinsim::Scene scene =
+        pinsim::parse_scene(cloth_scene(n, integrator, "csv").dump(), "cloth.json", ".");
+    pinsim::Simulation sim(scene, loader);
+    return median_ms([&] { sim.step(); }, repeats, 5);
+  };
+  const double symplectic = step_ms("symplectic_euler", 101);
+  const double implicit = step_ms("implicit_euler", 31);
+  std::printf("symplectic_euler_step,%.4f,ms\n", symplectic);
+  std::printf("implicit_euler_step,%.4f,ms\n", implicit);
+  std::printf("implicit_over_symplectic,%.2f,\n", implicit / symplectic);
+  {
+    const pinsim::Scene scene =
+        pinsim::parse_scene(cloth_scene(n, "implicit_euler", "csv").dump(), "cloth.json", ".");
+    pinsim::Simulation sim(scene, loader);
+    for (int i = 0; i < 50; ++i) sim.step();
+    const auto st = sim.integrator_stats();
+    std::printf("implicit_cg_iterations_per_solve,%.2f,\n",
+                st.value("cg_iterations_per_solve", 0.0));
+  }
+
+  for (const char* format : {"csv", "hdf5"}) {
+    if (std::string(format) == "hdf5" && !pinsim::hdf5_supported()) continue;
+    const pinsim::Scene scene =
+        pinsim::parse_scene(cloth_scene(n, "symplectic_euler", format).dump(), "cloth.json", ".");
+    pinsim::Simulation sim(scene, loader);
+    pinsim::Recorder rec(out / format, scene, true);
+    for (int i = 0; i < 5; ++i) sim.step();
+    const double write = median_ms([&] { rec.write_state(sim.state()); }, 101, 5);
+    rec.close();
+    std::printf("%s_frame_write,%.4f,ms\n", format, write);
+    std::printf("%s_frame_write_over_symplectic_step,%.3f,\n", format, write / symplectic);
+  }
+  return 0;
+}
