@@ -263,9 +263,9 @@ bool hdf5_supported() { return false; }
 
 struct Hdf5TrajectoryWriter::Handles {};
 
-Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t, const std::string&,
-                                           double)
-    : file_(file) {
+Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t particles,
+                                           const std::string&, double)
+    : file_(file), particles_(particles) {
   throw OutputError(file.string() + ": this pinsim was built without HDF5 (PINSIM_WITH_HDF5=OFF)");
 }
 Hdf5TrajectoryWriter::~Hdf5TrajectoryWriter() = default;

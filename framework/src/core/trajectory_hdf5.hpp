@@ -41,7 +41,8 @@ class Hdf5TrajectoryWriter {
   struct Handles;
   std::unique_ptr<Handles> h_;
   std::filesystem::path file_;
-  std::size_t particles_ = 0, frames_ = 0;
+  [[maybe_unused]] std::size_t particles_ = 0;  // unused in a build without HDF5
+  std::size_t frames_ = 0;
   std::vector<double> buf_;
 };
 
