@@ -71,6 +71,7 @@ def main(configs):
         "unknown body type": lambda s: s["bodies"][0].update({"type": "torus"}),
         "ring_blob count below 3": lambda s: s["bodies"][0].update({"count": 2}),
         "negative radius": lambda s: s["bodies"][0].update({"radius": -1}),
+        "unknown output format": lambda s: s["output"].update({"format": "xml"}),
     }
     for what, change in broken.items():
         scene = copy.deepcopy(base)
