@@ -21,7 +21,9 @@ namespace {
 /// then the backend drifts x with v_{n+1}. Exact backward Euler for linear forces: on the
 /// harmonic oscillator the energy shrinks by exactly 1/(1 + (h w)^2) per step, for any h.
 /// Pinned dofs (inv_mass 0) keep dv = 0: their rows and columns become the identity.
-/// The system is symmetric (K and D are for conservative and spring-damping forces) and is
+/// The system is taken as symmetric (K and D are for conservative and spring-damping forces;
+/// but a damped spring's df/dx has a nonsymmetric term -kd J^T (H v)^T, for which CG
+/// solves with A^T: see docs/bench_and_stress.md, "Known issue") and is
 /// solved by conjugate gradients with a Jacobi (diagonal) preconditioner to a relative
 /// residual of 1e-12, started from the last step's dv (warm start: a smooth motion changes
 /// dv little from step to step). A is assembled in a sparsity pattern built once (rebuilt
