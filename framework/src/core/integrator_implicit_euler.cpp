@@ -26,11 +26,12 @@ namespace {
 /// solves with A^T: see docs/bench_and_stress.md, "Known issue") and is
 /// solved by conjugate gradients with a Jacobi (diagonal) preconditioner to a relative
 /// residual of 1e-12, started from the last step's dv (warm start: a smooth motion changes
-/// dv little from step to step). A is assembled in a sparsity pattern built once (rebuilt
-/// only if the forces' entries move): no sorting or allocation per step; if CG fails (an indefinite
-/// K from compressed springs can do that) a sparse LU solves it instead. If that fails too (a
-/// singular system, or a residual above 1e-8 of |b|), the step throws NumericError (solver_failure)
-/// rather than use an unconverged velocity. stats() reports the solves for summary.json.
+/// dv little from step to step) when that guess's residual is below |b|, else from 0. A is
+/// assembled in a sparsity pattern built once (rebuilt only if the forces' entries move): no
+/// sorting or allocation per step; if CG fails (an indefinite K from compressed springs can do
+/// that) a sparse LU solves it instead. If that fails too (a singular system, or a residual above
+/// 1e-8 of |b|), the step throws NumericError (solver_failure) rather than use an unconverged
+/// velocity. stats() reports the solves for summary.json.
 ///
 /// A converged solve can still be meaningless. CG stops at |A dv - b| <= 1e-12 |b|, and a
 /// very stiff force makes |b| huge (h^2 K v) while the soft directions of A keep eigenvalues
@@ -77,7 +78,12 @@ class ImplicitEuler : public Integrator {
     cg_.compute(A_);
     // Warm start from the last step's dv (the same size: same particles); the first step
     // starts from 0. Deterministic: the guess is the previous step's result.
+    // Only a guess that beats 0 (|b - A dv_| < |b|): when the velocities shrink fast (a very
+    // stiff, strongly damped step) the old dv is far larger than the new one, and CG would
+    // reach the small answer as a difference of large numbers, losing its digits.
     if (dv_.size() != n) dv_.setZero(n);
+    r_.noalias() = b - A_ * dv_;
+    if (!(r_.squaredNorm() < b.squaredNorm())) dv_.setZero();
     dv_ = cg_.solveWithGuess(b, dv_);
     Eigen::VectorXd& dv = dv_;
     ++solves_;
@@ -273,7 +279,7 @@ class ImplicitEuler : public Integrator {
   double worst_residual_ = 0.0;
   Eigen::Matrix2Xd f_;
   std::vector<Eigen::Triplet<double>> tx_, tv_;  ///< df/dx, df/dv entries (kept capacity)
-  Eigen::VectorXd m_, kv_, b_;                   ///< masses (0: pinned), K v_n, right side
+  Eigen::VectorXd m_, kv_, b_, r_;               ///< masses (0: pinned), K v_n, right side
   // The pattern of A_: the slot of each entry in A_'s values (-1: a pinned row or column),
   // the entries' positions (row * n + col) and free dofs it was built for, each diagonal's slot.
   std::vector<int64_t> slot_x_, slot_v_, key_x_, key_v_, diag_slot_;

@@ -340,12 +340,14 @@ TEST_CASE("render and replay: a folder that is not a readable run is exit 2 nami
   const fs::path empty = test::temp_dir("not-a-run");
   auto r = pinsim_cli("render " + empty.string());
   CHECK(r.code == 2);
-  CHECK_THAT(r.output.c_str(), Catch::Contains(empty.string() + ": not a run folder (expected "
-                                                                "trajectory.csv in it"));
+  CHECK_THAT(r.output.c_str(),
+             Catch::Contains(empty.string() + ": not a run folder (expected "
+                                              "trajectory.csv or trajectory.h5 in it"));
   r = pinsim_cli("replay " + empty.string());
   CHECK(r.code == 2);
-  CHECK_THAT(r.output.c_str(), Catch::Contains(empty.string() + ": not a run folder (expected "
-                                                                "trajectory.csv in it"));
+  CHECK_THAT(r.output.c_str(),
+             Catch::Contains(empty.string() + ": not a run folder (expected "
+                                              "trajectory.csv or trajectory.h5 in it"));
   // A run folder whose trajectory.csv is cut off in a row: the file and line are named.
   const fs::path run = make_run("broken-run");
   test::write_file(run / "trajectory.csv", "t,particle,x,y,vx,vy\n0,0,0.5\n");
