@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <pinsim/parallel.hpp>
 
 #include "contact_options.hpp"
 #include "limits.hpp"
@@ -107,7 +108,7 @@ double SdfBackend::distance(const Vec2& p, double t, int64_t* obstacle) const {
 // otherwise the particle moves on by at most max(d, depth_min), which cannot take it deeper
 // than depth_min inside the surface.
 bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
-                       EventSink& ev, RestProbe* probe) {
+                       SdfStats& st, EventSink& ev, RestProbe* probe) {
   double remaining = dur;
   const auto& moving = field_.moving();
   bool first = true;
@@ -116,13 +117,13 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
     if (b.iterations >= max_iterations_ || b.collisions >= max_collisions_) {
       // Fallback: for the rest of the step the particle rides rigidly with the nearest
       // obstacle (stays where it is if that one is static); its velocity is kept.
-      ++stats_.cap_hits;
+      ++st.cap_hits;
       const Nearest nn = field_.nearest(x, t);
       if (nn.k >= 0) x = field_.carry(static_cast<std::size_t>(nn.k), x, t, t + remaining);
       return false;
     }
     ++b.iterations;
-    ++stats_.queries;
+    ++st.queries;
     // after a query in the contact band the next is likely there too: take the gradient
     // with the query rather than evaluating the nearest obstacle again
     const Nearest nn = in_band ? field_.nearest_with_gradient(x, t) : field_.nearest(x, t);
@@ -152,7 +153,7 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
       in_band = false;
       const double step = (d - depth_min_) / lip;
       if (step >= remaining) {
-        if (first) ++stats_.skipped;
+        if (first) ++st.skipped;
         x += v * remaining;
         return true;
       }
@@ -201,7 +202,7 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
       if (!resting && m.kick > 0.0) dv += m.kick * n;
       v += dv;
       ++b.collisions;
-      ++stats_.contacts;
+      ++st.contacts;
       if (!resting) {
         pinsim_event e{};
         e.t = t;
@@ -372,18 +373,18 @@ void SdfBackend::schedule_pairs(const MutableState& s, double dt, EventSink& ev)
 // budget for the whole step.
 [[gnu::always_inline]] inline void SdfBackend::march_with_changes(std::size_t i, MutableState& s,
                                                                   double t0, double dt,
-                                                                  EventSink& ev) {
+                                                                  SdfStats& st, EventSink& ev) {
   Vec2 x = s.x.col(i), v = s.v.col(i);
   const double r = s.radius[i];
-  ++stats_.particle_steps;
+  ++st.particle_steps;
   Budget b;
   double done = 0.0;
   for (const Change& c : changes_[i]) {
-    march(i, x, v, r, t0 + done, c.tau - done, b, ev);
+    march(i, x, v, r, t0 + done, c.tau - done, b, st, ev);
     v += c.dv;
     done = c.tau;
   }
-  march(i, x, v, r, t0 + done, dt - done, b, ev);
+  march(i, x, v, r, t0 + done, dt - done, b, st, ev);
   s.x.col(i) = x;
   s.v.col(i) = v;
 }
@@ -393,32 +394,39 @@ void SdfBackend::schedule_pairs(const MutableState& s, double dt, EventSink& ev)
 // Otherwise the march, with a probe of what it looked at; a step that ended at rest on
 // static obstacles, or while nothing moves, is recorded.
 [[gnu::always_inline]] inline void SdfBackend::march_or_reuse(std::size_t i, MutableState& s,
-                                                              double t0, double dt, EventSink& ev) {
+                                                              double t0, double dt, SdfStats& st,
+                                                              EventSink& ev) {
   Vec2 x = s.x.col(i), v = s.v.col(i);
   const double r = s.radius[i];
   const RestRecord* hit = rest_.find(i, x, v, r, dt);
   if (hit != nullptr && rest_.reusable(*hit, field_, speed_bound_, depth_min_)) {
-    add(stats_, hit->added);
-    ++stats_.reuses;
+    add(st, hit->added);
+    ++st.reuses;
     s.x.col(i) = hit->x_out;
     s.v.col(i) = hit->v_out;
     return;
   }
-  const SdfStats before = stats_;
-  ++stats_.particle_steps;
+  const SdfStats before = st;
+  ++st.particle_steps;
   RestProbe probe;
   probe.x0 = x;
   Budget b;
-  march(i, x, v, r, t0, dt, b, ev, &probe);
+  march(i, x, v, r, t0, dt, b, st, ev, &probe);
   if (probe.at_rest && (probe.static_only || rest_.still()))
     rest_.store(i, hit,
                 {s.x.col(i), s.v.col(i), x, v, r, dt, std::sqrt(probe.reach), probe.d_max,
-                 probe.speed, stats_ - before, rest_.epoch(), !probe.static_only});
+                 probe.speed, st - before, rest_.epoch(), !probe.static_only});
   else
     rest_.forget(i);
   s.x.col(i) = x;
   s.v.col(i) = v;
 }
+
+namespace {
+void push_event(void* ctx, const pinsim_event* e) {
+  static_cast<std::vector<pinsim_event>*>(ctx)->push_back(*e);
+}
+}  // namespace
 
 void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   if (!(dt > 0.0)) return;
@@ -428,20 +436,45 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   rest_.begin_step(motion.still, motion.same_segments);
   const bool pairs = particle_contacts_ && s.n > 1;
   if (pairs) schedule_pairs(s, dt, ev);
-  // Each particle with finite mass along its path, contacts resolved on the way.
-  rest_.resize(s.n);
+  // (beyond the limit the march cannot resolve the step: refuse, never freeze silently;
+  // checked for every particle before any moves, so a refused step changes nothing)
   for (std::size_t i = 0; i < s.n; ++i) {
     if (!(s.inv_mass[i] > 0.0)) continue;  // pinned particles do not move
-    // (beyond the limit the march cannot resolve the step: refuse, never freeze silently)
     if (!(std::abs(s.v(0, i)) * dt <= kMaxMagnitude && std::abs(s.v(1, i)) * dt <= kMaxMagnitude))
       throw Error("particle " + std::to_string(i) + " at t = " + num(t0) + " s: velocity (" +
                   num(s.v(0, i)) + ", " + num(s.v(1, i)) +
                   ") travels beyond the sdf backend's limit of 1e+09 per step "
                   "(backends/sdf/README.md, Limits)");
+  }
+  // Each particle with finite mass along its path, contacts resolved on the way. Particles
+  // are independent here (pair contacts are fixed above as velocity changes in changes_,
+  // the rest cache keeps one record set per particle, the field is only read), so fixed
+  // chunks of them may run on threads; each chunk counts and collects its events apart, and
+  // they are added and emitted in chunk order: the serial order, for any thread count.
+  rest_.resize(s.n);
+  auto particle = [&](std::size_t i, SdfStats& st, EventSink& sink) {
+    if (!(s.inv_mass[i] > 0.0)) return;  // pinned particles do not move
     if (pairs)
-      march_with_changes(i, s, t0, dt, ev);
+      march_with_changes(i, s, t0, dt, st, sink);
     else
-      march_or_reuse(i, s, t0, dt, ev);
+      march_or_reuse(i, s, t0, dt, st, sink);
+  };
+  if (s.n < kParallelParticles || available_threads() < 2) {
+    for (std::size_t i = 0; i < s.n; ++i) particle(i, stats_, ev);
+    return;
+  }
+  const std::size_t chunks = chunk_count(s.n, kChunk);
+  chunk_stats_.assign(chunks, SdfStats{});
+  chunk_events_.resize(chunks);
+  for_chunks(s.n, kChunk, [&](std::size_t c, std::size_t b, std::size_t e) {
+    chunk_events_[c].clear();
+    const pinsim_event_sink to{&chunk_events_[c], &push_event};
+    EventSink sink(&to);
+    for (std::size_t i = b; i < e; ++i) particle(i, chunk_stats_[c], sink);
+  });
+  for (std::size_t c = 0; c < chunks; ++c) {
+    add(stats_, chunk_stats_[c]);
+    for (const pinsim_event& e : chunk_events_[c]) ev.emit(e);
   }
 }
 

@@ -50,8 +50,9 @@ class SdfBackend {
     Vec2 dv;     ///< velocity change
   };
   /// Moves particle i from (x, v) at time t over `dur`; false if the caps stopped it early.
+  /// Counts into st and emits into ev (the chunk's own when particles run on threads).
   bool march(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
-             EventSink& ev, RestProbe* probe = nullptr);
+             SdfStats& st, EventSink& ev, RestProbe* probe = nullptr);
   /// Step along a sliding contact with static obstacle k (see sdf_backend.cpp), 0 if none.
   double slide_step(std::size_t k, const Vec2& x, const Vec2& v, double r, double remaining,
                     double lip) const;
@@ -63,10 +64,12 @@ class SdfBackend {
   /// Speed bounds of the moving obstacles over [t0, t0 + dt], and their motion.
   ObstacleMotion bound_moving_obstacles(double t0, double dt);
   /// Particle i of s through the step with the velocity changes of its pair contacts.
-  void march_with_changes(std::size_t i, MutableState& s, double t0, double dt, EventSink& ev);
+  void march_with_changes(std::size_t i, MutableState& s, double t0, double dt, SdfStats& st,
+                          EventSink& ev);
   /// Particle i of s through the step without pair contacts: reused from the rest cache
   /// when it can be, else marched (and remembered if it ended at rest).
-  void march_or_reuse(std::size_t i, MutableState& s, double t0, double dt, EventSink& ev);
+  void march_or_reuse(std::size_t i, MutableState& s, double t0, double dt, SdfStats& st,
+                      EventSink& ev);
   /// Forgets what the steps so far learned about the timelines (speed bounds, segment
   /// hints, still epochs, rest records), as a newly created backend has.
   void reset_timeline_caches();
@@ -87,6 +90,13 @@ class SdfBackend {
   std::vector<std::vector<Change>> changes_;
   RestCache rest_;  ///< particle steps that ended at rest
   SdfStats stats_;
+  /// Particles from which advance() marches them on threads when there are threads: below
+  /// it the serial loop is as fast (bench/threads, docs/threads.md).
+  static constexpr std::size_t kParallelParticles = 256;
+  /// Particles per chunk on threads (any value gives the same bits).
+  static constexpr std::size_t kChunk = 64;
+  std::vector<SdfStats> chunk_stats_;                    ///< per chunk, this step
+  std::vector<std::vector<pinsim_event>> chunk_events_;  ///< per chunk, this step
 };
 
 }  // namespace pinsim::sdf

@@ -26,6 +26,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <pinsim/parallel.hpp>
 #include <pinsim/plugin.hpp>
 #include <string>
 #include <vector>
@@ -58,14 +59,18 @@ class ConstraintSpring {
     idx_ = element_indices(ctx, Arity);
   }
 
-  /// f += -J^T (ks C + kd J v) for every element.
+  /// f += -J^T (ks C + kd J v) for every element. With threads (pinsim/parallel.hpp) and at
+  /// least kParallelElements elements: first each element's terms sc dC into a buffer, in
+  /// fixed chunks, then per particle the terms of its elements subtracted in element order,
+  /// the order of the serial loop, so f is the same to the bit for any thread count.
   void add_force(const StateView& s, ForceOut& f) const {
     const double* x = s.x.data();
     const double* v = s.v.data();
     double* out = f.data();
     const std::size_t m = count();
-    const uint32_t* id = idx_.data();
-    for (std::size_t e = 0; e < m; ++e, id += Arity) {
+    // element e's terms sc dC(c, k) into t[2k + c]
+    auto terms = [&](std::size_t e, double* t) {
+      const uint32_t* id = idx_.data() + e * Arity;
       Stencil p, dC;
       for (uint32_t k = 0; k < Arity; ++k) {
         p(0, k) = x[2 * id[k]];
@@ -77,11 +82,41 @@ class ConstraintSpring {
         cdot += dC(0, k) * v[2 * id[k]] + dC(1, k) * v[2 * id[k] + 1];
       const double sc = ks_ * c + kd_ * cdot;
       for (uint32_t k = 0; k < Arity; ++k) {
-        out[2 * id[k]] -= sc * dC(0, k);
-        out[2 * id[k] + 1] -= sc * dC(1, k);
+        t[2 * k] = sc * dC(0, k);
+        t[2 * k + 1] = sc * dC(1, k);
       }
+    };
+    if (m < kParallelElements || available_threads() < 2) {
+      double t[kDofs];
+      for (std::size_t e = 0; e < m; ++e) {
+        terms(e, t);
+        const uint32_t* id = idx_.data() + e * Arity;
+        for (uint32_t k = 0; k < Arity; ++k) {
+          out[2 * id[k]] -= t[2 * k];
+          out[2 * id[k] + 1] -= t[2 * k + 1];
+        }
+      }
+      return;
     }
+    build_incidence();
+    buffer_.resize(m * kDofs);
+    for_chunks(m, kChunk, [&](std::size_t, std::size_t b, std::size_t e) {
+      for (std::size_t i = b; i < e; ++i) terms(i, buffer_.data() + i * kDofs);
+    });
+    const std::size_t n = std::min<std::size_t>(s.n, first_.size() - 1);
+    for_chunks(n, kChunk, [&](std::size_t, std::size_t b, std::size_t e) {
+      for (std::size_t q = b; q < e; ++q)
+        for (uint32_t j = first_[q]; j < first_[q + 1]; ++j) {
+          const std::size_t slot = slots_[j];  // e * Arity + k, increasing
+          out[2 * q] -= buffer_[2 * slot];
+          out[2 * q + 1] -= buffer_[2 * slot + 1];
+        }
+    });
   }
+
+  /// Elements from which add_force runs in parallel when threads are available: below it
+  /// the serial loop is faster (bench/threads, docs/threads.md).
+  static constexpr std::size_t kParallelElements = 8192;
 
   /// E = sum over elements of ks/2 C^2 (the conservative part).
   double energy(const StateView& s) const {
@@ -163,6 +198,22 @@ class ConstraintSpring {
     return h;
   }
 
+  /// Items per chunk of the parallel add_force (any value gives the same bits).
+  static constexpr std::size_t kChunk = 4096;
+
+  /// For each particle q, the slots e * Arity + k where it appears, in increasing order:
+  /// slots_[first_[q]] ... slots_[first_[q + 1] - 1] (counting sort over idx_, once).
+  void build_incidence() const {
+    if (!first_.empty()) return;
+    const uint32_t n = idx_.empty() ? 0 : *std::max_element(idx_.begin(), idx_.end()) + 1;
+    first_.assign(static_cast<std::size_t>(n) + 1, 0);
+    for (uint32_t q : idx_) ++first_[q + 1];
+    for (std::size_t q = 0; q < n; ++q) first_[q + 1] += first_[q];
+    slots_.resize(idx_.size());
+    std::vector<uint32_t> at(first_.begin(), first_.end() - 1);
+    for (std::size_t j = 0; j < idx_.size(); ++j) slots_[at[idx_[j]]++] = static_cast<uint32_t>(j);
+  }
+
   void scatter(std::size_t e, const Hessian& k, Triplets& out) const {
     for (uint32_t a = 0; a < Arity; ++a)
       for (uint32_t b = 0; b < Arity; ++b)
@@ -173,6 +224,10 @@ class ConstraintSpring {
   double ks_;
   double kd_;
   std::vector<uint32_t> idx_;
+  // Scratch of the parallel add_force (the host calls one instance from one thread at a
+  // time; the chunks inside a call write disjoint parts).
+  mutable std::vector<uint32_t> first_, slots_;
+  mutable std::vector<double> buffer_;
 };
 
 }  // namespace pinsim

@@ -1,4 +1,5 @@
 // pinsim run [SCENE] [--out DIR] [--set PATH=VALUE]... [--backend NAME] [--integrator NAME]
+//            [--threads N]
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
@@ -21,6 +22,7 @@ struct RunArgs {
   std::vector<std::string> set;
   std::string backend;
   std::string integrator;
+  unsigned threads = 0;  ///< 0 = the machine's cores
   bool overwrite = false;
 };
 
@@ -29,6 +31,7 @@ int run_command(const RunArgs& a) {
   PluginLoader loader(plugin_search_dirs(scene.plugin_path));
   RunSettings rs;
   rs.options.integrator = a.integrator;
+  rs.options.threads = a.threads;
   if (!a.out.empty()) rs.out = a.out;
   rs.overwrite = a.overwrite;
   rs.stop = &stop_signal();
@@ -71,6 +74,12 @@ void add_run_command(CLI::App& app) {
   c->add_option("--integrator", a->integrator,
                 "Use this integrator instead of the scene's (explicit_euler, symplectic_euler, "
                 "velocity_verlet, rk4, implicit_euler)");
+  c->add_option("--threads", a->threads,
+                "Threads for the forces and the backend's particles (1 to " +
+                    std::to_string(kMaxThreads) +
+                    "; default: the machine's cores); the results are the same to the bit for "
+                    "any number (docs/threads.md)")
+      ->check(CLI::Range(1u, kMaxThreads));
   c->add_flag("--overwrite", a->overwrite, "Replace an earlier run's files in the output folder");
   c->callback([a] { throw CLI::RuntimeError(run_command(*a)); });
 }

@@ -31,6 +31,7 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
       {"dt", scene.dt},
       {"duration", scene.duration},
       {"particles", sim.state().size()},
+      {"threads", sim.threads()},
       {"versions", {{"pinsim", PINSIM_VERSION}, {"plugins", plugins}}},
   };
   std::unique_ptr<CrashSummary> crash;

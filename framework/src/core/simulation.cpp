@@ -4,6 +4,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <thread>
+#ifdef PINSIM_WITH_TBB
+#include <tbb/task_arena.h>
+#endif
 
 #include "core/instances.hpp"
 #include "core/integrator.hpp"
@@ -48,8 +52,32 @@ void fd_jacobian(const ForceInstance& force, const State& s, bool wrt_v,
 
 }  // namespace
 
+#ifdef PINSIM_WITH_TBB
+struct Simulation::Arena {
+  explicit Arena(unsigned n) : arena(static_cast<int>(n)) {}
+  tbb::task_arena arena;
+};
+#else
+struct Simulation::Arena {};
+#endif
+
+unsigned resolve_threads(unsigned requested) {
+#ifdef PINSIM_WITH_TBB
+  const unsigned n = requested != 0 ? requested : std::thread::hardware_concurrency();
+  return std::clamp(n, 1u, kMaxThreads);
+#else
+  (void)requested;
+  return 1;
+#endif
+}
+
 Simulation::Simulation(const Scene& scene, PluginLoader& loader, const RunOptions& options)
-    : scene_(scene), state_(scene.initial_state()) {
+    : scene_(scene), state_(scene.initial_state()), threads_(resolve_threads(options.threads)) {
+#ifdef PINSIM_WITH_TBB
+  // An arena also for one thread: outside any arena a plugin's parallel loop would use every
+  // core; inside one of 1 it takes its serial path.
+  arena_ = std::make_unique<Arena>(threads_);
+#endif
   integrator_name_ = options.integrator.empty() ? scene_.integrator : options.integrator;
   try {
     integrator_ = make_integrator(integrator_name_);
@@ -195,7 +223,14 @@ void Simulation::step() {
   // Time at the end of the step from the step count, so t carries no accumulated rounding.
   const double t_end = static_cast<double>(step_ + 1) * scene_.dt;
   events_.clear();
+#ifdef PINSIM_WITH_TBB
+  // Plugins' parallel loops (oneTBB) run in this arena: their concurrency is threads_. Each
+  // one splits its work in fixed chunks and combines them in a fixed order, so the result
+  // does not depend on threads_ (docs/threads.md).
+  arena_->arena.execute([&] { integrator_->step(*this, scene_.dt); });
+#else
   integrator_->step(*this, scene_.dt);
+#endif
   if (const StepFinding found = checks_.check(state_)) throw_step_finding(found, t_end);
   state_.t = t_end;
   ++step_;

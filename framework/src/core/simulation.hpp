@@ -54,7 +54,17 @@ class NumericError : public std::runtime_error {
 struct RunOptions {
   std::string backend;     ///< "" = the scene's
   std::string integrator;  ///< "" = the scene's
+  /// Threads for the forces and the backend's per-particle work (--threads), 1 to
+  /// kMaxThreads; 0 = the machine's cores. Results are bit-identical for every value
+  /// (docs/threads.md).
+  unsigned threads = 0;
 };
+
+/// The most threads a run may ask for (--threads).
+inline constexpr unsigned kMaxThreads = 256;
+/// Threads for `requested` (0 = std::thread::hardware_concurrency(), at least 1); always 1
+/// in a build without oneTBB.
+unsigned resolve_threads(unsigned requested);
 
 class Simulation {
  public:
@@ -118,6 +128,8 @@ class Simulation {
   const std::vector<std::unique_ptr<ForceInstance>>& forces() const { return forces_; }
   const BackendInstance& backend() const { return *backend_; }
   const std::string& integrator_name() const { return integrator_name_; }
+  /// Threads the steps run on (RunOptions::threads resolved; 1 without oneTBB).
+  unsigned threads() const { return threads_; }
   /// The integrator's own figures for summary.json (implicit Euler: its linear solves), or
   /// null when it has none.
   nlohmann::json integrator_stats() const;
@@ -134,8 +146,12 @@ class Simulation {
   /// "; largest force on it: forces[0] 'gravity' (|f| = 9.81)", and the plugin for errors.
   std::string strongest_force_text(const State& s, Eigen::Index i, std::string& plugin) const;
 
+  struct Arena;  ///< the oneTBB task_arena of threads_ threads (none in a serial build)
+
   Scene scene_;
   State state_;
+  unsigned threads_ = 1;
+  std::unique_ptr<Arena> arena_;
   std::vector<std::unique_ptr<ForceInstance>> forces_;
   std::unique_ptr<BackendInstance> backend_;
   std::unique_ptr<Integrator> integrator_;

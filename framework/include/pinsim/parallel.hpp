@@ -1,0 +1,63 @@
+// pinsim/parallel.hpp: fixed-chunk parallel loops for plugins, bit-identical for any thread
+// count (header-only).
+//
+// The host runs every step inside a oneTBB task_arena of `--threads` threads. A plugin loop
+// written with for_chunks() runs its chunks on those threads; in a build without oneTBB
+// (PINSIM_WITH_TBB undefined: the web build, out-of-tree plugins) it runs them one after
+// another. Chunks are fixed by the item count and the chunk size alone, never by the thread
+// count, so a body that writes only what belongs to its own items (and reads nothing another
+// chunk writes) gives the same bits with 1, 2 or 64 threads. Anything summed over items is
+// summed per chunk into a slot of its own and then over the slots in chunk order.
+#pragma once
+
+#include <algorithm>
+#include <cstddef>
+
+#ifdef PINSIM_WITH_TBB
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/partitioner.h>
+#include <tbb/task_arena.h>
+#endif
+
+namespace pinsim {
+
+/// Threads the current call may use: the host's --threads inside a step (the arena's
+/// concurrency), 1 in a build without oneTBB.
+inline int available_threads() {
+#ifdef PINSIM_WITH_TBB
+  return tbb::this_task_arena::max_concurrency();
+#else
+  return 1;
+#endif
+}
+
+/// Number of chunks of `chunk` items in [0, n).
+inline std::size_t chunk_count(std::size_t n, std::size_t chunk) {
+  return chunk == 0 ? 0 : (n + chunk - 1) / chunk;
+}
+
+/// Calls body(c, begin, end) once for each chunk c of [0, n): [c chunk, min(n, (c+1) chunk)),
+/// in parallel when more than one thread is available and there is more than one chunk, else
+/// in order on the calling thread. An exception from a body reaches the caller (with threads,
+/// one of them), after the running chunks end.
+template <class Body>
+void for_chunks(std::size_t n, std::size_t chunk, Body&& body) {
+  const std::size_t chunks = chunk_count(n, chunk);
+  auto run = [&](std::size_t c) { body(c, c * chunk, std::min(n, (c + 1) * chunk)); };
+#ifdef PINSIM_WITH_TBB
+  if (chunks > 1 && available_threads() > 1) {
+    // simple_partitioner with grain 1: every chunk is one task, whatever the thread count
+    tbb::parallel_for(
+        tbb::blocked_range<std::size_t>(0, chunks, 1),
+        [&](const tbb::blocked_range<std::size_t>& r) {
+          for (std::size_t c = r.begin(); c != r.end(); ++c) run(c);
+        },
+        tbb::simple_partitioner());
+    return;
+  }
+#endif
+  for (std::size_t c = 0; c < chunks; ++c) run(c);
+}
+
+}  // namespace pinsim
