@@ -110,6 +110,14 @@ Simulation::~Simulation() = default;
 
 nlohmann::json Simulation::integrator_stats() const { return integrator_->stats(); }
 
+void Simulation::run_in_arena(const std::function<void()>& fn) {
+#ifdef PINSIM_WITH_TBB
+  arena_->arena.execute(fn);
+#else
+  fn();
+#endif
+}
+
 void Simulation::set_input(const std::string& name, bool pressed) {
   backend_->input(name, pressed, state_.t);
 }

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <pinsim/state.hpp>
 #include <stdexcept>
@@ -130,6 +131,10 @@ class Simulation {
   const std::string& integrator_name() const { return integrator_name_; }
   /// Threads the steps run on (RunOptions::threads resolved; 1 without oneTBB).
   unsigned threads() const { return threads_; }
+  /// Runs fn in the steps' thread arena (as step() runs the integrator), so the plugins'
+  /// parallel loops get threads() threads; for tools and benchmarks that call
+  /// compute_forces() or drift() directly.
+  void run_in_arena(const std::function<void()>& fn);
   /// The integrator's own figures for summary.json (implicit Euler: its linear solves), or
   /// null when it has none.
   nlohmann::json integrator_stats() const;

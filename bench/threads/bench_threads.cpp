@@ -1,0 +1,171 @@
+// Wall time per step with 1 thread and with more (RunOptions::threads, as `pinsim run
+// --threads N`) on the scenes of issue 15: 10,000 balls falling onto obstacles without ball
+// contacts, 1,000,000 damped springs (a 708 x 708 grid's edges), and the small scenes that
+// must not get slower (one ball on the pinball table, the 16-particle blob). Prints CSV:
+// scene, particles, threads, steps, ms per step (best of `repeats` runs), speed-up over 1
+// thread, state hash (equal across thread counts, else the line says DIFFERS and the
+// program exits 1).
+//
+// Usage: pinsim_bench_threads [threads=hardware] [repeats=3] [scale=1] [only=SCENE]
+//   scale < 1 shrinks every step count (a quick look); `only` runs one scene.
+#include <Eigen/Core>
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "core/plugin_loader.hpp"
+#include "core/scene.hpp"
+#include "core/simulation.hpp"
+
+namespace {
+
+using nlohmann::json;
+
+struct Case {
+  std::string name;
+  json scene;  // or null: `file`
+  std::string file;
+  uint64_t steps;
+};
+
+json obstacles() {
+  return {{{"id", "floor"},
+           {"shape", {{"type", "box"}, {"center", {0.0, -1.5}}, {"half_size", {20.0, 0.5}}}},
+           {"material", {{"restitution", 0.5}, {"friction", 0.1}}}},
+          {{"id", "bumper_a"},
+           {"shape", {{"type", "circle"}, {"center", {1.0, 0.0}}, {"radius", 0.5}}},
+           {"material", {{"restitution", 0.9}}}},
+          {{"id", "bumper_b"},
+           {"shape", {{"type", "capsule"}, {"a", {2.5, -0.5}}, {"b", {4.0, 0.2}}, {"radius", 0.2}}},
+           {"material", {{"restitution", 0.7}}}}};
+}
+
+json balls_10k() {
+  return {{"name", "balls_10k"},
+          {"time", {{"dt", 0.001}, {"duration", 10.0}}},
+          {"integrator", "symplectic_euler"},
+          {"backend", {{"name", "sdf"}}},
+          {"bodies",
+           {{{"type", "grid_blob"},
+             {"name", "balls"},
+             {"origin", {0.0, 0.5}},
+             {"nx", 100},
+             {"ny", 100},
+             {"spacing", 0.05},
+             {"mass", 0.01},
+             {"radius", 0.01},
+             {"velocity", {0.5, -2.0}}}}},
+          {"forces", {{{"type", "gravity"}, {"params", {{"g", {0.0, -9.81}}}}}}},
+          {"obstacles", obstacles()}};
+}
+
+json springs_1m() {
+  return {{"name", "springs_1m"},
+          {"time", {{"dt", 0.0002}, {"duration", 10.0}}},
+          {"integrator", "symplectic_euler"},
+          {"backend", {{"name", "sdf"}}},
+          {"bodies",
+           {{{"type", "grid_blob"},
+             {"name", "sheet"},
+             {"origin", {0.0, 0.5}},
+             {"nx", 708},
+             {"ny", 708},
+             {"spacing", 0.01},
+             {"mass", 0.001},
+             {"radius", 0.003},
+             {"velocity", {0.1, -0.5}}}}},
+          {"forces",
+           {{{"type", "gravity"}, {"params", {{"g", {0.0, -9.81}}}}},
+            {{"type", "damped_spring"},
+             {"params", {{"ks", 100.0}, {"kd", 0.01}}},
+             {"elements", {{"body", "sheet"}, {"set", "edges"}}}}}},
+          {"obstacles", obstacles()}};
+}
+
+struct Timing {
+  double ms_per_step;
+  uint64_t hash;
+  double ms_forces;  ///< one compute_forces at the end state
+  double ms_drift;   ///< one backend drift over dt from the end state
+};
+
+Timing time_case(const pinsim::Scene& scene, unsigned threads, uint64_t steps, int repeats) {
+  pinsim::PluginLoader loader(pinsim::plugin_search_dirs(scene.plugin_path));
+  pinsim::RunOptions o;
+  o.threads = threads;
+  double best = 1e300, forces = 0.0, drift = 0.0;
+  uint64_t hash = 0;
+  for (int r = 0; r < repeats; ++r) {
+    pinsim::Simulation sim(scene, loader, o);
+    sim.step();  // warm-up: first-touch of buffers, the arena's threads
+    const auto a = std::chrono::steady_clock::now();
+    for (uint64_t k = 1; k < steps; ++k) sim.step();
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
+    best = std::min(best, 1e3 * s / static_cast<double>(steps - 1));
+    hash = sim.state().hash();
+    if (r + 1 < repeats) continue;
+    // the two parts of a step that run on threads, alone, inside an arena as in step()
+    Eigen::Matrix2Xd f;
+    const int reps = 5;
+    pinsim::State copy = sim.state();
+    auto part = [&](auto&& fn) {
+      double b = 1e300;
+      for (int k = 0; k < reps; ++k) {
+        const auto t0 = std::chrono::steady_clock::now();
+        sim.run_in_arena(fn);
+        b = std::min(
+            b, 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
+      }
+      return b;
+    };
+    forces = part([&] { sim.compute_forces(sim.state(), f); });
+    drift = part([&] {
+      copy = sim.state();
+      sim.drift(copy, scene.dt);
+    });
+  }
+  return {best, hash, forces, drift};
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const unsigned n = argc > 1 ? static_cast<unsigned>(std::atoi(argv[1]))
+                              : std::max(1u, std::thread::hardware_concurrency());
+  const int repeats = argc > 2 ? std::max(1, std::atoi(argv[2])) : 3;
+  const double scale = argc > 3 ? std::atof(argv[3]) : 1.0;
+  const std::string only = argc > 4 ? argv[4] : "";
+  const std::string configs = PINSIM_SOURCE_DIR "/configs";
+  const std::vector<Case> cases = {{"balls_10k_no_contacts", balls_10k(), "", 300},
+                                   {"damped_springs_1m", springs_1m(), "", 30},
+                                   {"one_ball_pinball", nullptr, configs + "/pinball.json", 20000},
+                                   {"blob_16", nullptr, configs + "/blob_drop.json", 6000}};
+  std::printf("scene,particles,threads,steps,ms_per_step,speedup,ms_forces,ms_drift,state_hash\n");
+  int status = 0;
+  for (const Case& c : cases) {
+    if (!only.empty() && c.name != only) continue;
+    const pinsim::Scene scene =
+        c.scene.is_null() ? pinsim::load_scene(c.file)
+                          : pinsim::parse_scene(c.scene.dump(), c.name + ".json", configs);
+    const uint64_t steps =
+        std::min(scene.steps(), std::max<uint64_t>(3, static_cast<uint64_t>(scale * c.steps)));
+    const Timing one = time_case(scene, 1, steps, repeats);
+    for (unsigned t : {1u, n}) {
+      const Timing m = t == 1 ? one : time_case(scene, t, steps, repeats);
+      const bool same = m.hash == one.hash;
+      if (!same) status = 1;
+      std::printf("%s,%zu,%u,%llu,%.4f,%.2f,%.4f,%.4f,%016llx%s\n", c.name.c_str(),
+                  scene.particles.size(), t, static_cast<unsigned long long>(steps), m.ms_per_step,
+                  one.ms_per_step / m.ms_per_step, m.ms_forces, m.ms_drift,
+                  static_cast<unsigned long long>(m.hash), same ? "" : " DIFFERS");
+      std::fflush(stdout);
+      if (n == 1) break;
+    }
+  }
+  return status;
+}
