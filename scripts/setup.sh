@@ -5,7 +5,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 packages=(cmake g++ make pkg-config libeigen3-dev libboost-dev libspdlog-dev catch2
-          nlohmann-json3-dev libcli11-dev libbox2d-dev
+          nlohmann-json3-dev libcli11-dev libbox2d-dev libtbb-dev
           libcairo2-dev libsdl2-dev chromium xvfb xauth gnuplot-nox python3-jsonschema
           slurm-wlm munge bubblewrap clang libclang-rt-14-dev firefox-esr emscripten
           libhdf5-dev hdf5-tools python3-h5py)

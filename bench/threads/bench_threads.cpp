@@ -102,14 +102,14 @@ Timing time_case(const pinsim::Scene& scene, unsigned threads, uint64_t steps, i
   uint64_t hash = 0;
   for (int r = 0; r < repeats; ++r) {
     pinsim::Simulation sim(scene, loader, o);
-    sim.step();  // warm-up: first-touch of buffers, the arena's threads
+    sim.step();  // warm-up: first touch of buffers, oneTBB's threads
     const auto a = std::chrono::steady_clock::now();
     for (uint64_t k = 1; k < steps; ++k) sim.step();
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
     best = std::min(best, 1e3 * s / static_cast<double>(steps - 1));
     hash = sim.state().hash();
     if (r + 1 < repeats) continue;
-    // the two parts of a step that run on threads, alone, inside an arena as in step()
+    // the two parts of a step that run on threads, alone
     Eigen::Matrix2Xd f;
     const int reps = 5;
     pinsim::State copy = sim.state();
@@ -117,7 +117,7 @@ Timing time_case(const pinsim::Scene& scene, unsigned threads, uint64_t steps, i
       double b = 1e300;
       for (int k = 0; k < reps; ++k) {
         const auto t0 = std::chrono::steady_clock::now();
-        sim.run_in_arena(fn);
+        fn();
         b = std::min(
             b, 1e3 * std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count());
       }
@@ -145,7 +145,7 @@ int main(int argc, char** argv) {
                                    {"damped_springs_1m", springs_1m(), "", 30},
                                    {"one_ball_pinball", nullptr, configs + "/pinball.json", 20000},
                                    {"blob_16", nullptr, configs + "/blob_drop.json", 6000}};
-  std::printf("scene,particles,threads,steps,ms_per_step,speedup,ms_forces,ms_drift,state_hash\n");
+  std::printf("scene,particles,threads,steps,us_per_step,speedup,us_forces,us_drift,state_hash\n");
   int status = 0;
   for (const Case& c : cases) {
     if (!only.empty() && c.name != only) continue;
@@ -159,10 +159,11 @@ int main(int argc, char** argv) {
       const Timing m = t == 1 ? one : time_case(scene, t, steps, repeats);
       const bool same = m.hash == one.hash;
       if (!same) status = 1;
-      std::printf("%s,%zu,%u,%llu,%.4f,%.2f,%.4f,%.4f,%016llx%s\n", c.name.c_str(),
-                  scene.particles.size(), t, static_cast<unsigned long long>(steps), m.ms_per_step,
-                  one.ms_per_step / m.ms_per_step, m.ms_forces, m.ms_drift,
-                  static_cast<unsigned long long>(m.hash), same ? "" : " DIFFERS");
+      std::printf("%s,%zu,%u,%llu,%.3f,%.2f,%.3f,%.3f,%016llx%s\n", c.name.c_str(),
+                  scene.particles.size(), t, static_cast<unsigned long long>(steps),
+                  1e3 * m.ms_per_step, one.ms_per_step / m.ms_per_step, 1e3 * m.ms_forces,
+                  1e3 * m.ms_drift, static_cast<unsigned long long>(m.hash),
+                  same ? "" : " DIFFERS");
       std::fflush(stdout);
       if (n == 1) break;
     }

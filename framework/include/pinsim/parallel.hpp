@@ -1,8 +1,9 @@
 // pinsim/parallel.hpp: fixed-chunk parallel loops for plugins, bit-identical for any thread
 // count (header-only).
 //
-// The host runs every step inside a oneTBB task_arena of `--threads` threads. A plugin loop
-// written with for_chunks() runs its chunks on those threads; in a build without oneTBB
+// The host limits oneTBB to `--threads` threads while a simulation lives (a
+// tbb::global_control). A plugin loop written with for_chunks() runs its chunks on those
+// threads; in a build without oneTBB
 // (PINSIM_WITH_TBB undefined: the web build, out-of-tree plugins) it runs them one after
 // another. Chunks are fixed by the item count and the chunk size alone, never by the thread
 // count, so a body that writes only what belongs to its own items (and reads nothing another
@@ -15,6 +16,7 @@
 
 #ifdef PINSIM_WITH_TBB
 #include <tbb/blocked_range.h>
+#include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
 #include <tbb/partitioner.h>
 #include <tbb/task_arena.h>
@@ -22,11 +24,14 @@
 
 namespace pinsim {
 
-/// Threads the current call may use: the host's --threads inside a step (the arena's
-/// concurrency), 1 in a build without oneTBB.
+/// Threads the current call may use: the host's --threads (oneTBB's global limit, or the
+/// current task_arena's concurrency if smaller), 1 in a build without oneTBB.
 inline int available_threads() {
 #ifdef PINSIM_WITH_TBB
-  return tbb::this_task_arena::max_concurrency();
+  const auto limit =
+      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism);
+  return static_cast<int>(std::min<std::size_t>(
+      limit, static_cast<std::size_t>(tbb::this_task_arena::max_concurrency())));
 #else
   return 1;
 #endif

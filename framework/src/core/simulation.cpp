@@ -6,7 +6,7 @@
 #include <cmath>
 #include <thread>
 #ifdef PINSIM_WITH_TBB
-#include <tbb/task_arena.h>
+#include <tbb/global_control.h>
 #endif
 
 #include "core/instances.hpp"
@@ -53,12 +53,12 @@ void fd_jacobian(const ForceInstance& force, const State& s, bool wrt_v,
 }  // namespace
 
 #ifdef PINSIM_WITH_TBB
-struct Simulation::Arena {
-  explicit Arena(unsigned n) : arena(static_cast<int>(n)) {}
-  tbb::task_arena arena;
+struct Simulation::ThreadLimit {
+  explicit ThreadLimit(unsigned n) : control(tbb::global_control::max_allowed_parallelism, n) {}
+  tbb::global_control control;
 };
 #else
-struct Simulation::Arena {};
+struct Simulation::ThreadLimit {};
 #endif
 
 unsigned resolve_threads(unsigned requested) {
@@ -74,9 +74,11 @@ unsigned resolve_threads(unsigned requested) {
 Simulation::Simulation(const Scene& scene, PluginLoader& loader, const RunOptions& options)
     : scene_(scene), state_(scene.initial_state()), threads_(resolve_threads(options.threads)) {
 #ifdef PINSIM_WITH_TBB
-  // An arena also for one thread: outside any arena a plugin's parallel loop would use every
-  // core; inside one of 1 it takes its serial path.
-  arena_ = std::make_unique<Arena>(threads_);
+  // The plugins' parallel loops (oneTBB) run on at most threads_ threads while this
+  // simulation lives: a process-wide limit, set once, so a step pays nothing for it (a
+  // task_arena entered every step cost 50-100 ns, half of a one-ball step at rest). With
+  // several simulations alive the smallest limit holds for all; results do not change.
+  limit_ = std::make_unique<ThreadLimit>(threads_);
 #endif
   integrator_name_ = options.integrator.empty() ? scene_.integrator : options.integrator;
   try {
@@ -109,14 +111,6 @@ Simulation::Simulation(const Scene& scene, PluginLoader& loader, const RunOption
 Simulation::~Simulation() = default;
 
 nlohmann::json Simulation::integrator_stats() const { return integrator_->stats(); }
-
-void Simulation::run_in_arena(const std::function<void()>& fn) {
-#ifdef PINSIM_WITH_TBB
-  arena_->arena.execute(fn);
-#else
-  fn();
-#endif
-}
 
 void Simulation::set_input(const std::string& name, bool pressed) {
   backend_->input(name, pressed, state_.t);
@@ -231,14 +225,9 @@ void Simulation::step() {
   // Time at the end of the step from the step count, so t carries no accumulated rounding.
   const double t_end = static_cast<double>(step_ + 1) * scene_.dt;
   events_.clear();
-#ifdef PINSIM_WITH_TBB
-  // Plugins' parallel loops (oneTBB) run in this arena: their concurrency is threads_. Each
-  // one splits its work in fixed chunks and combines them in a fixed order, so the result
-  // does not depend on threads_ (docs/threads.md).
-  arena_->arena.execute([&] { integrator_->step(*this, scene_.dt); });
-#else
+  // Plugins' parallel loops split their work in fixed chunks and combine them in a fixed
+  // order, so the step does not depend on threads_ (docs/threads.md).
   integrator_->step(*this, scene_.dt);
-#endif
   if (const StepFinding found = checks_.check(state_)) throw_step_finding(found, t_end);
   state_.t = t_end;
   ++step_;

@@ -4,7 +4,6 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <cstdint>
-#include <functional>
 #include <memory>
 #include <pinsim/state.hpp>
 #include <stdexcept>
@@ -131,10 +130,6 @@ class Simulation {
   const std::string& integrator_name() const { return integrator_name_; }
   /// Threads the steps run on (RunOptions::threads resolved; 1 without oneTBB).
   unsigned threads() const { return threads_; }
-  /// Runs fn in the steps' thread arena (as step() runs the integrator), so the plugins'
-  /// parallel loops get threads() threads; for tools and benchmarks that call
-  /// compute_forces() or drift() directly.
-  void run_in_arena(const std::function<void()>& fn);
   /// The integrator's own figures for summary.json (implicit Euler: its linear solves), or
   /// null when it has none.
   nlohmann::json integrator_stats() const;
@@ -151,12 +146,12 @@ class Simulation {
   /// "; largest force on it: forces[0] 'gravity' (|f| = 9.81)", and the plugin for errors.
   std::string strongest_force_text(const State& s, Eigen::Index i, std::string& plugin) const;
 
-  struct Arena;  ///< the oneTBB task_arena of threads_ threads (none in a serial build)
+  struct ThreadLimit;  ///< oneTBB's limit of threads_ threads (none in a serial build)
 
   Scene scene_;
   State state_;
   unsigned threads_ = 1;
-  std::unique_ptr<Arena> arena_;
+  std::unique_ptr<ThreadLimit> limit_;
   std::vector<std::unique_ptr<ForceInstance>> forces_;
   std::unique_ptr<BackendInstance> backend_;
   std::unique_ptr<Integrator> integrator_;

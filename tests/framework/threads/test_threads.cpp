@@ -1,7 +1,7 @@
 // `pinsim run --threads N`: the state hash and the trajectory bytes do not depend on N.
 //
-// Why they must be equal (docs/threads.md): the host runs each step in a oneTBB arena of N
-// threads; the only loops that use it split their work in chunks fixed by the item count
+// Why they must be equal (docs/threads.md): the host limits oneTBB to N threads; the only
+// loops that use them split their work in chunks fixed by the item count
 // (pinsim/parallel.hpp). The sdf backend marches each particle with its own inputs (pair
 // contacts are scheduled serially first) and adds counters and events per chunk, in chunk
 // order; the SDK's ConstraintSpring computes each element's terms apart and subtracts them
