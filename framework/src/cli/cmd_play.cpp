@@ -17,6 +17,7 @@
 #include "commands.hpp"
 #include "core/input_error.hpp"
 #include "core/json_read.hpp"
+#include "core/output_file.hpp"
 #include "pictures/cairo_handles.hpp"
 #include "pictures/play_game.hpp"
 #include "pictures/render.hpp"
@@ -352,9 +353,8 @@ int play_command(const PlayArgs& a) {
                game->state().t, game->steps(), game->balls_left(),
                game->game_over() ? ", game over" : "", rec["state_hash"].get<std::string>());
   if (!a.record.empty()) {
-    std::ofstream out(a.record);
-    out << rec.dump(2) << "\n";
-    if (!out) throw std::runtime_error(a.record + ": cannot write");
+    // Whole or not at all: an earlier recording at that path stays as it was if this fails.
+    write_file_atomically(a.record, rec.dump(2) + "\n");
     spdlog::info("inputs recorded to {}", a.record);
   }
   return 0;

@@ -336,6 +336,30 @@ TEST_CASE(
   CHECK(r.code == 1);
 }
 
+TEST_CASE("play --record: a recording that cannot be written is exit 1, nothing left half") {
+  if (shell("command -v xvfb-run >/dev/null").code != 0) {
+    WARN("SKIPPED: xvfb-run is not installed (scripts/setup.sh installs xvfb)");
+    return;
+  }
+  // The recording goes to a temporary file beside it, renamed over it: renaming a file over
+  // a folder fails (EISDIR), so the write fails after the game and leaves the folder as it
+  // was and no temporary behind.
+  const fs::path dir = test::temp_dir("play-record");
+  const fs::path rec = dir / "recording.json";
+  fs::create_directories(rec / "inside");
+  const std::string script = PINSIM_TEST_SOURCE_DIR "/framework/pictures/render/play_script.json";
+  const auto r = shell("xvfb-run -a -s '-screen 0 1024x1280x24' " + std::string(PINSIM_BIN) +
+                       " play " PINSIM_SOURCE_DIR "/configs/pinball.json --script " + script +
+                       " --seconds 0.2 --width 200 --record " + rec.string());
+  INFO(r.output);
+  CHECK(r.code == 1);
+  CHECK_THAT(r.output.c_str(), Catch::Contains(rec.string() + ": cannot "));
+  CHECK(fs::is_directory(rec / "inside"));
+  int files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) files += e.path() != rec;
+  CHECK(files == 0);
+}
+
 TEST_CASE("render and replay: a folder that is not a readable run is exit 2 naming it") {
   const fs::path empty = test::temp_dir("not-a-run");
   auto r = pinsim_cli("render " + empty.string());
