@@ -108,6 +108,27 @@ TEST_CASE("numeric checks: kinetic_growth 0 turns the per-step bound off") {
   CHECK(e["plugin"] == "forces[0] 'linear_spring'");
 }
 
+TEST_CASE("numeric checks: a NaN made in the backend's drift is blamed on the backend") {
+  // The fixture backend's 3rd drift sets particle 0's v_x to NaN; every force (gravity) is
+  // finite and the velocity entered the drift finite, so the backend is to blame.
+  const RunResult r = run(R"({"plugin_path": [")" PINSIM_TEST_FIXTURE_DIR R"("],
+    "time": {"dt": 0.01, "duration": 1.0}, "integrator": "symplectic_euler",
+    "backend": {"name": "disc_backend", "params": {"nan_step": 3}},
+    "particles": [{"x": [0, 0], "v": [1, 0]}], "forces": [{"type": "gravity"}]})");
+  CHECK(r.exit_code == 1);
+  const auto& e = r.summary["error"];
+  CHECK(e["kind"] == "numeric");
+  CHECK(e["numeric"] == "non_finite");
+  CHECK(e["step"] == 3);
+  CHECK(e["particle"] == 0);
+  CHECK(e["plugin"] == "backend 'disc_backend'");
+  CHECK_THAT(e["message"].get<std::string>(),
+             StartsWith("non-finite state of particle 0 after the drift by backend "
+                        "'disc_backend': x = ") &&
+                 Contains("; it entered the drift finite, at v = "));
+  CHECK(r.summary["steps"] == 2);
+}
+
 TEST_CASE("numeric checks: kinetic_growth must be 0 or at least 2") {
   PluginLoader loader(plugin_search_dirs());
   REQUIRE_THROWS_WITH(
