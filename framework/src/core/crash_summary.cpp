@@ -23,8 +23,9 @@ constexpr int kCount = sizeof kCrashSignals / sizeof kCrashSignals[0];
 /// Everything the handler touches, prepared in advance.
 struct Armed {
   int fd = -1;
-  std::string prefix;     // the summary's JSON without its closing "\n}"
-  std::string tmp, dest;  // summary.json.crash.PID, summary.json
+  std::string prefix;              // the summary's JSON without its closing "\n}"
+  std::string interrupted_prefix;  // the same with the status "interrupted"
+  std::string tmp, dest;           // summary.json.crash.PID, summary.json
   struct sigaction old[kCount] = {};
   stack_t old_stack = {};
   bool disarmed = false;
@@ -54,39 +55,57 @@ char* put_str(char* p, const char* s) {
   return p + n;
 }
 
+/// Writes the summary of a process that a signal is ending: `prefix` (its status), then the
+/// steps, the signal and the error of `kind` ("... by SIGSEGV during step N"), and renames it
+/// over summary.json. Async-signal-safe; once per process.
+void write_last_summary(Armed* a, int sig, const std::string& prefix, const char* kind,
+                        const char* message) {
+  if (a == nullptr || a->fd < 0) return;
+  const uint64_t steps = g_step.load(std::memory_order_relaxed);
+  const char* name = signal_abbrev(sig);
+  char tail[512];
+  char* p = tail;
+  p = put_str(p, ",\n  \"steps\": ");
+  p = put_uint(p, steps);
+  p = put_str(p, ",\n  \"signal\": {\n    \"name\": \"");
+  p = put_str(p, name);
+  p = put_str(p, "\",\n    \"number\": ");
+  p = put_uint(p, static_cast<uint64_t>(sig));
+  p = put_str(p, "\n  },\n  \"error\": {\n    \"kind\": \"");
+  p = put_str(p, kind);
+  p = put_str(p, "\",\n    \"message\": \"");
+  p = put_str(p, message);
+  p = put_str(p, name);
+  p = put_str(p, " during step ");
+  p = put_uint(p, steps + 1);
+  p = put_str(p, "\",\n    \"step\": ");
+  p = put_uint(p, steps + 1);
+  p = put_str(p, "\n  }\n}\n");
+  if (write_all(a->fd, prefix.data(), prefix.size()) == 0 &&
+      write_all(a->fd, tail, static_cast<std::size_t>(p - tail)) == 0 && ::close(a->fd) == 0)
+    ::rename(a->tmp.c_str(), a->dest.c_str());
+  a->fd = -1;
+}
+
 extern "C" void on_crash(int sig) {
   const int saved_errno = errno;
   Armed* a = g_armed;
-  if (a != nullptr && a->fd >= 0) {
-    const uint64_t steps = g_step.load(std::memory_order_relaxed);
-    const char* name = signal_abbrev(sig);
-    char tail[512];
-    char* p = tail;
-    p = put_str(p, ",\n  \"steps\": ");
-    p = put_uint(p, steps);
-    p = put_str(p, ",\n  \"signal\": {\n    \"name\": \"");
-    p = put_str(p, name);
-    p = put_str(p, "\",\n    \"number\": ");
-    p = put_uint(p, static_cast<uint64_t>(sig));
-    p = put_str(p, "\n  },\n  \"error\": {\n    \"kind\": \"crash\",\n    \"message\": \"");
-    p = put_str(p, "the process was killed by ");
-    p = put_str(p, name);
-    p = put_str(p, " during step ");
-    p = put_uint(p, steps + 1);
-    p = put_str(p, "\",\n    \"step\": ");
-    p = put_uint(p, steps + 1);
-    p = put_str(p, "\n  }\n}\n");
-    if (write_all(a->fd, a->prefix.data(), a->prefix.size()) == 0 &&
-        write_all(a->fd, tail, static_cast<std::size_t>(p - tail)) == 0 && ::close(a->fd) == 0)
-      ::rename(a->tmp.c_str(), a->dest.c_str());
-    a->fd = -1;
-  }
+  if (a != nullptr) write_last_summary(a, sig, a->prefix, "crash", "the process was killed by ");
   // The previous action (the default, or a test framework's) gets the signal next: raised
   // now, it is delivered when this handler returns.
   for (int i = 0; i < kCount; ++i)
     if (kCrashSignals[i] == sig && a != nullptr) ::sigaction(sig, &a->old[i], nullptr);
   errno = saved_errno;
   ::raise(sig);
+}
+
+/// A second SIGINT (SIGTERM, ...) while the run finishes its step: stop_signals ends the
+/// process with it after this.
+void on_second_stop(int sig) {
+  Armed* a = g_armed;
+  if (a != nullptr && !a->disarmed)
+    write_last_summary(a, sig, a->interrupted_prefix, "signal",
+                       "the process was ended by a second ");
 }
 
 }  // namespace
@@ -100,6 +119,9 @@ CrashSummary::CrashSummary(const fs::path& dir, nlohmann::json summary) {
   a->prefix = summary.dump(2);
   // dump(2) of an object ends with "\n}"; the handler appends its keys and the brace.
   a->prefix.resize(a->prefix.size() - 2);
+  summary["status"] = "interrupted";
+  a->interrupted_prefix = summary.dump(2);
+  a->interrupted_prefix.resize(a->interrupted_prefix.size() - 2);
   a->dest = (dir / "summary.json").string();
   a->tmp = a->dest + ".crash." + std::to_string(::getpid());
   a->fd = ::open(a->tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
@@ -123,11 +145,13 @@ CrashSummary::CrashSummary(const fs::path& dir, nlohmann::json summary) {
   sa.sa_flags = SA_ONSTACK;
   g_armed = a;
   for (int i = 0; i < kCount; ++i) ::sigaction(kCrashSignals[i], &sa, &a->old[i]);
+  set_second_stop_action(on_second_stop);
 }
 
 void CrashSummary::disarm() noexcept {
   Armed* a = g_armed;
   if (a == nullptr || a->disarmed) return;
+  set_second_stop_action(nullptr);
   for (int i = 0; i < kCount; ++i) ::sigaction(kCrashSignals[i], &a->old[i], nullptr);
   if (a->old_stack.ss_sp != nullptr) ::sigaltstack(&a->old_stack, nullptr);
   a->disarmed = true;

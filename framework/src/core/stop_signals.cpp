@@ -2,15 +2,35 @@
 
 #include <signal.h>
 
+#include <cerrno>
+
 namespace pinsim {
 namespace {
 
 std::atomic<int> g_stop{0};
 static_assert(std::atomic<int>::is_always_lock_free, "the signal handler stores into it");
+std::atomic<SecondStopAction> g_second_action{nullptr};
+static_assert(std::atomic<SecondStopAction>::is_always_lock_free, "the signal handler reads it");
+
+/// Records the first stop signal; false if one was recorded before (`first` then holds it).
+bool record(int sig, int& first) noexcept {
+  first = 0;
+  return g_stop.compare_exchange_strong(first, sig);
+}
 
 extern "C" void on_stop_signal(int sig) {
-  int none = 0;
-  g_stop.compare_exchange_strong(none, sig);
+  int first = 0;
+  if (record(sig, first) || first != sig) return;  // the first, or another kind: noted
+  // A second signal of the same kind: the process ends of it, after the action (a run's
+  // summary.json) is done. Raised now, the signal is delivered when this handler returns.
+  const int saved_errno = errno;
+  if (const SecondStopAction action = g_second_action.load()) action(sig);
+  struct sigaction dfl = {};
+  dfl.sa_handler = SIG_DFL;
+  sigemptyset(&dfl.sa_mask);
+  ::sigaction(sig, &dfl, nullptr);
+  errno = saved_errno;
+  ::raise(sig);
 }
 
 }  // namespace
@@ -20,8 +40,8 @@ void install_stop_handlers() {
   sa.sa_handler = on_stop_signal;
   sigemptyset(&sa.sa_mask);
   // SA_RESTART: the signal must not fail a write or read elsewhere; loops poll the flag.
-  // SA_RESETHAND: a second signal of the same kind gets the default action.
-  sa.sa_flags = SA_RESTART | SA_RESETHAND;
+  // A second signal of the same kind gets the default action from the handler itself.
+  sa.sa_flags = SA_RESTART;
   for (int s : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) {
     // Under nohup (SIGHUP ignored when pinsim started) a hangup stays ignored. SIGINT and
     // SIGQUIT, which a shell ignores for its background jobs, are caught all the same, so
@@ -34,7 +54,12 @@ void install_stop_handlers() {
 
 const std::atomic<int>& stop_signal() { return g_stop; }
 
-void request_stop(int sig) noexcept { on_stop_signal(sig); }
+void request_stop(int sig) noexcept {
+  int first = 0;
+  record(sig, first);
+}
+
+void set_second_stop_action(SecondStopAction action) noexcept { g_second_action.store(action); }
 
 const char* signal_abbrev(int sig) noexcept {
   switch (sig) {

@@ -1,7 +1,8 @@
 // SIGINT, SIGTERM, SIGHUP and SIGQUIT ask a long command (run, bench, stress, crosscheck,
 // grade) to stop cleanly: it finishes its current step, point or test, writes what is done
 // and exits with 128 + the signal's number. A second signal of the same kind ends the
-// process at once (the signal's default action).
+// process at once (the signal's default action), after the second-stop action (a run's
+// summary.json).
 #pragma once
 
 #include <atomic>
@@ -19,6 +20,12 @@ const std::atomic<int>& stop_signal();
 
 /// Records `sig` as if it had arrived (tests, and code that stops for its own reasons).
 void request_stop(int sig) noexcept;
+
+/// What a second stop signal of the same kind does before the process dies of it (a run
+/// writes its summary.json: CrashSummary). It runs in the signal handler, so it must be
+/// async-signal-safe. nullptr (the default): nothing.
+using SecondStopAction = void (*)(int sig);
+void set_second_stop_action(SecondStopAction action) noexcept;
 
 /// "SIGINT", "SIGSEGV", ...; "signal N" for one without a name here. Async-signal-safe (a
 /// static string; "signal" for unknown ones).

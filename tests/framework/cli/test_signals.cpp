@@ -2,9 +2,12 @@
 // its current step or point, writes what is done and exits with 128 + the signal. Every test
 // waits for a progress file before signalling, so it is not a race on a loaded machine.
 #include <signal.h>
+#include <sys/wait.h>
 
 #include <catch2/catch.hpp>
+#include <chrono>
 #include <nlohmann/json.hpp>
+#include <thread>
 
 #include "test_support.hpp"
 
@@ -75,6 +78,49 @@ TEST_CASE("signals: run stops after the current step with a summary saying so") 
     CHECK_THAT(test::read_file(dir / "log"), Contains("stopped by " + name + " after step " +
                                                       std::to_string(s["steps"].get<long>())));
   }
+}
+
+TEST_CASE("signals: a second signal during a stuck step ends run with its summary written") {
+  // The fixture force sleeps 60 s in step 52 (x = 0.51 after step 51 passes 0.505, as in the
+  // crash test), so the first SIGINT cannot end the step: the run is stuck in it, and a
+  // second SIGINT ends the process. Its summary must say so, not stay at "running".
+  const fs::path dir = test::temp_dir("sig-second");
+  const fs::path out = dir / "run";
+  test::write_file(dir / "stuck.json", R"({"time": {"dt": 0.01, "duration": 2.0},
+    "particles": [{"x": [0, 0], "v": [1, 0]}],
+    "forces": [{"type": "crash_force", "library": ")" PINSIM_TEST_FIXTURE_DIR
+                                       R"(/libfixture_crash_force.so",
+                "params": {"threshold": 0.505, "stall_s": 60}}],
+    "output": {"every": 1}})");
+  const pid_t pid = test::spawn_pinsim(
+      {"run", (dir / "stuck.json").string(), "--out", out.string()}, dir / "log");
+  // The initial state and steps 1..51 are on disk (52 rows): the run is in step 52.
+  REQUIRE(test::wait_until([&] {
+    return has_bytes(out / "trajectory.csv", 1) && csv_rows(out / "trajectory.csv") >= 52;
+  }));
+  // SIGINT until the process is gone: the first only asks it to stop (the step does not
+  // end), a later one ends it. Sent 100 ms apart, so two are never pending at once.
+  int status = 0, sent = 0;
+  pid_t done = 0;
+  while ((done = ::waitpid(pid, &status, WNOHANG)) == 0 && sent < 100) {
+    ::kill(pid, SIGINT);
+    ++sent;
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+  }
+  if (done == 0) done = ::waitpid(pid, &status, 0);
+  REQUIRE(done == pid);
+  CHECK(WIFSIGNALED(status));
+  CHECK(WTERMSIG(status) == SIGINT);
+  CHECK(sent >= 2);
+  const auto s = nlohmann::json::parse(test::read_file(out / "summary.json"));
+  CHECK(s["status"] == "interrupted");
+  CHECK(s["steps"] == 51);
+  CHECK(s["signal"]["name"] == "SIGINT");
+  CHECK(s["signal"]["number"] == SIGINT);
+  CHECK(s["error"]["kind"] == "signal");
+  CHECK(s["error"]["step"] == 52);
+  CHECK(s["error"]["message"] == "the process was ended by a second SIGINT during step 52");
+  CHECK(csv_rows(out / "trajectory.csv") == 52);
 }
 
 TEST_CASE("signals: bench keeps its finished points and --continue goes on from them") {
