@@ -1,7 +1,7 @@
 // Replays the fuzz targets' seed and regression corpora through the same entry functions
 // libFuzzer drives, so an input that once crashed pinsim fails the normal test suite (no
-// clang needed). Every input must be accepted or refused; scenes and --set must be refused
-// with a message that names the file and JSON path; the shipped configs must be accepted.
+// clang needed). Every input must be accepted or refused with a message that names the file
+// and JSON path; the shipped configs must be accepted.
 #include <algorithm>
 #include <catch2/catch.hpp>
 #include <filesystem>
@@ -38,10 +38,6 @@ bool is_schema(const fs::path& f) {
   return f.filename().string().find(".schema.") != std::string::npos;
 }
 
-/// Targets whose every refusal names its place. Sweep configs and rubrics still let some
-/// type errors through as nlohmann's own message (issue 16, part 1): warned, not failed.
-bool locates_errors(const std::string& name) { return name == "scene" || name == "set"; }
-
 /// Runs every file through target `name`; returns how many were accepted.
 std::size_t replay(const std::string& name, const std::vector<fs::path>& files) {
   const auto entry = pinsim::fuzz::entry(name);
@@ -54,10 +50,9 @@ std::size_t replay(const std::string& name, const std::vector<fs::path>& files) 
     INFO(name << " input " << f.string());
     const auto r = entry(pinsim::test::read_file(f));
     INFO(r.message);
-    if (locates_errors(name))
-      CHECK(r.outcome != Outcome::other);
-    else if (r.outcome == Outcome::other)
-      WARN("unlocated message for " << f.string() << ": " << r.message);
+    // Every refusal names its place (sweep configs once let type errors through as
+    // nlohmann's own type_error.302, naming nothing).
+    CHECK(r.outcome != Outcome::other);
     accepted += r.outcome == Outcome::accepted;
   }
   return accepted;

@@ -40,8 +40,9 @@ struct Case {
   std::string name;
   json doc;  ///< the scene document
   fs::path base;
-  json answer;     ///< closed form spec, or null
-  json reference;  ///< {"integrator", "dt", "sample_every"} or null
+  json answer;        ///< closed form spec, or null
+  json reference;     ///< {"integrator", "dt", "sample_every"} or null
+  std::string where;  ///< "bench.json: cases[2]", for the answer's messages
 };
 
 std::vector<std::pair<std::string, json>> settings(const Point& p, bool timing) {
@@ -55,12 +56,17 @@ std::vector<std::pair<std::string, json>> settings(const Point& p, bool timing) 
   return set;
 }
 
+/// o.name if it is a string, else `def` (a label for the log and CSV; the scene's own
+/// parsing refuses a backend without a proper name, naming the file and path).
+std::string name_or(const json& o, const std::string& def) {
+  if (o.is_string()) return o.get<std::string>();
+  const auto it = o.is_object() ? o.find("name") : o.end();
+  return it != o.end() && it->is_string() ? it->get<std::string>() : def;
+}
+
 std::string backend_name(const json& b, const json& doc) {
-  if (b.is_object()) return b.value("name", std::string("?"));
-  if (doc.contains("backend")) {
-    const json& d = doc["backend"];
-    return d.is_string() ? d.get<std::string>() : d.value("name", std::string("none"));
-  }
+  if (b.is_object()) return name_or(b, "?");
+  if (doc.contains("backend")) return name_or(doc["backend"], "none");
   return "none";
 }
 
@@ -99,7 +105,7 @@ Result run_point(const Case& c, const Point& p, int repeats, PluginLoader& loade
   Result res;
   const Scene acc = sweep::make_scene(c.doc, settings(p, false), c.name, c.base);
   std::optional<Answer> answer;
-  if (!c.answer.is_null()) answer.emplace(c.answer, acc.initial_state(), c.name + ": answer");
+  if (!c.answer.is_null()) answer.emplace(c.answer, acc.initial_state(), c.where + ".answer");
   const double every =
       ref ? c.reference.value("sample_every", acc.duration / 10.0) : 0.0;  // reference samples
   // Accuracy run (untimed): error every step against the closed form, or at the reference
@@ -178,7 +184,9 @@ int run(const Options& o) {
   const json& cases_j = sweep::cases(cfg);
   check_keys(d, {"$schema", "description", "cases", "integrators", "backends", "dt", "repeats"},
              {where, ""});
-  const int repeats = o.repeats >= 0 ? o.repeats : d.value("repeats", 3);
+  const int repeats = o.repeats >= 0 ? o.repeats
+                                     : static_cast<int>(std::min<uint64_t>(
+                                           read_count_or(d, "repeats", 3, {where, ""}), 1000000));
 
   std::vector<Case> cases;
   std::vector<Point> points;
@@ -187,18 +195,21 @@ int run(const Options& o) {
     const std::string cw = where + ": cases[" + std::to_string(ci) + "]";
     check_keys(cj, {"name", "scene", "answer", "reference", "dt", "integrators", "backends"},
                Loc{where, "cases"}[ci]);
+    const Loc at = Loc{where, "cases"}[ci];
     Case c;
-    c.name = cj.value("name", "case" + std::to_string(ci));
+    c.name = read_string_or(cj, "name", "case" + std::to_string(ci), at);
+    c.where = cw;
     if (!cj.contains("scene")) throw InputError(cw + ".scene: required");
     c.doc = sweep::scene_doc(cfg, cj["scene"], c.base);
     c.answer = cj.value("answer", json());
     c.reference = cj.value("reference", json());
     if (c.answer.is_null() == c.reference.is_null())
       throw InputError(cw + ": give exactly one of \"answer\" (closed form) or \"reference\"");
+    if (!c.answer.is_null()) require_object(c.answer, at / "answer");
+    if (!c.reference.is_null()) require_object(c.reference, at / "reference");
     // a misspelt optional key (damping_ratio, floor, ...) would silently change the answer
-    const Loc at = Loc{where, "cases"}[ci];
     if (c.answer.is_object()) {
-      const std::string type = c.answer.value("type", std::string());
+      const std::string type = read_string_or(c.answer, "type", "", at / "answer");
       if (type == "projectile")
         check_keys(c.answer, {"type", "particle", "g"}, at / "answer");
       else if (type == "harmonic")
@@ -209,8 +220,13 @@ int run(const Options& o) {
       else if (type == "ball_in_box")
         check_keys(c.answer, {"type", "particle", "min", "max"}, at / "answer");
     }
-    if (c.reference.is_object())
+    if (c.reference.is_object()) {
       check_keys(c.reference, {"integrator", "dt", "sample_every"}, at / "reference");
+      // read later with these defaults: their types are checked here, where the path is known
+      read_string_or(c.reference, "integrator", "rk4", at / "reference");
+      read_number_or(c.reference, "dt", 1e-5, at / "reference");
+      read_number_or(c.reference, "sample_every", 1.0, at / "reference");
+    }
     const sweep::Axes ax = sweep::case_axes(cfg, cj, cw);
     for (const json& b : ax.backends)
       for (const std::string& in : ax.integrators)

@@ -8,8 +8,9 @@ namespace pinsim::bench {
 namespace {
 
 Eigen::Vector2d vec(const nlohmann::json& j, const char* key, const std::string& where) {
-  if (!j.contains(key) || !j[key].is_array() || j[key].size() != 2)
-    throw InputError(where + "." + key + ": expected [x, y]");
+  if (!j.contains(key) || !j[key].is_array() || j[key].size() != 2 || !j[key][0].is_number() ||
+      !j[key][1].is_number())
+    throw InputError(where + "." + key + ": expected [x, y] (two numbers)");
   return {j[key][0].get<double>(), j[key][1].get<double>()};
 }
 

@@ -193,12 +193,15 @@ int run(const Options& o) {
                {"name", "kind", "scene", "dt", "integrators", "backends", "energy_blowup",
                 "penetration_tolerance", "displacement_limit", "stiffness", "speeds", "thickness"},
                Loc{where, "cases"}[ci]);
+    const Loc at = Loc{where, "cases"}[ci], top{where, ""};
     Case c;
-    c.name = cj.value("name", "case" + std::to_string(ci));
-    c.kind = cj.value("kind", std::string("run"));
-    c.blowup = cj.value("energy_blowup", d.value("energy_blowup", 1.0));
-    c.pen_tol = cj.value("penetration_tolerance", d.value("penetration_tolerance", 1e-3));
-    c.displacement_limit = cj.value("displacement_limit", 0.0);
+    c.name = read_string_or(cj, "name", "case" + std::to_string(ci), at);
+    c.kind = read_string_or(cj, "kind", "run", at);
+    c.blowup =
+        read_number_or(cj, "energy_blowup", read_number_or(d, "energy_blowup", 1.0, top), at);
+    c.pen_tol = read_number_or(cj, "penetration_tolerance",
+                               read_number_or(d, "penetration_tolerance", 1e-3, top), at);
+    c.displacement_limit = read_number_or(cj, "displacement_limit", 0.0, at);
     if (c.kind != "tunnelling") {
       if (!cj.contains("scene")) throw InputError(cw + ".scene: required");
       c.doc = sweep::scene_doc(cfg, cj["scene"], c.base);
@@ -211,7 +214,7 @@ int run(const Options& o) {
       if (!cj.contains("stiffness") || !cj["stiffness"].is_object())
         throw InputError(cw + ".stiffness: expected {\"path\": ..., \"values\": [...]}");
       check_keys(cj["stiffness"], {"path", "values"}, Loc{where, "cases"}[ci] / "stiffness");
-      c.stiffness_path = cj["stiffness"].value("path", std::string());
+      c.stiffness_path = read_string_or(cj["stiffness"], "path", "", at / "stiffness");
       ks = sweep::numbers(cj["stiffness"].value("values", json()), cw + ".stiffness.values");
     } else if (c.kind == "tunnelling") {
       speeds = sweep::numbers(cj.value("speeds", json()), cw + ".speeds");
@@ -263,7 +266,10 @@ int run(const Options& o) {
       std::replace(r.cls.begin(), r.cls.end(), ',', ';');
       std::replace(r.cls.begin(), r.cls.end(), '\n', ' ');
     }
-    std::string bname = p.backend.is_object() ? p.backend.value("name", "?") : "scene";
+    const auto it = p.backend.is_object() ? p.backend.find("name") : p.backend.end();
+    const std::string bname = it == p.backend.end() ? (p.backend.is_object() ? "?" : "scene")
+                              : it->is_string()     ? it->get<std::string>()
+                                                    : "?";
     spdlog::info("[{}/{}] {} {} {} dt={} k={} v={} w={}: {} (step {}, particle {})", p.index + 1,
                  points.size(), c.name, bname, p.integrator, p.dt, num(p.stiffness), num(p.speed),
                  num(p.thickness), r.cls, r.bad_step, r.particle);

@@ -246,3 +246,56 @@ TEST_CASE("bench and stress configs: an unknown key is an error naming the file 
   CHECK(r.code == 2);
   CHECK_THAT(r.output, Catch::Contains("cases[0].answer.damping"));
 }
+
+TEST_CASE("bench and stress configs: a value of the wrong type is exit 2 with file, path, type") {
+  // Each of these once came back as nlohmann's own "type_error.302", naming nothing.
+  const fs::path dir = pinsim::test::temp_dir("sweep-types");
+  const auto bench_with = [&](const std::string& from, const std::string& to) {
+    std::string b = kBench;
+    b.replace(b.find(from), from.size(), to);
+    return b;
+  };
+  struct Bad {
+    std::string tool, text, message;
+  };
+  const std::vector<Bad> bad = {
+      {"bench", bench_with("\"name\": \"oscillator\"", "\"name\": 5"),
+       "bench.json: cases[0].name: expected a string, got number 5"},
+      {"bench", bench_with("\"repeats\": 1", "\"repeats\": \"1\""),
+       "bench.json: repeats: expected a non-negative integer, got string \"1\""},
+      {"bench", bench_with("\"type\": \"harmonic\"", "\"type\": [1]"),
+       "bench.json: cases[0].answer.type: expected a string, got array [1]"},
+      {"bench",
+       bench_with("\"answer\": {\"type\": \"harmonic\", \"particle\": 1, \"omega\": 3.0}",
+                  "\"answer\": 3"),
+       "bench.json: cases[0].answer: expected an object, got number 3"},
+      {"bench",
+       bench_with("\"answer\": {\"type\": \"harmonic\", \"particle\": 1, \"omega\": 3.0}",
+                  "\"reference\": {\"dt\": \"small\"}"),
+       "bench.json: cases[0].reference.dt: expected a number, got string \"small\""},
+      {"stress", R"({"cases": [{"name": "t", "kind": "tunnelling", "speeds": [1],
+         "thickness": [0.01], "dt": [0.01], "displacement_limit": "far"}]})",
+       "stress.json: cases[0].displacement_limit: expected a number, got string \"far\""},
+      {"stress", R"({"energy_blowup": true, "cases": [{"kind": "tunnelling", "speeds": [1],
+         "thickness": [0.01], "dt": [0.01]}]})",
+       "stress.json: energy_blowup: expected a number, got boolean true"},
+      {"stress", R"({"cases": [{"kind": 7, "speeds": [1], "thickness": [0.01], "dt": [0.01]}]})",
+       "stress.json: cases[0].kind: expected a string, got number 7"},
+  };
+  for (const Bad& b : bad) {
+    CAPTURE(b.text);
+    pinsim::test::write_file(dir / (b.tool + ".json"), b.text);
+    // The config is checked whole before the first point runs.
+    const auto r = pinsim_cli("-q " + b.tool + " " + (dir / (b.tool + ".json")).string() +
+                              " --out " + (dir / "out").string());
+    CHECK(r.code == 2);
+    CHECK_THAT(r.output, Catch::Contains(b.message));
+    CHECK_THAT(r.output, !Catch::Contains("type_error"));
+  }
+  // The answer's own numbers are read when the point runs: still located.
+  pinsim::test::write_file(dir / "bench.json", bench_with("\"omega\": 3.0", "\"omega\": \"3\""));
+  const auto r =
+      pinsim_cli("-q bench " + (dir / "bench.json").string() + " --out " + (dir / "out2").string());
+  CHECK(r.code != 0);
+  CHECK_THAT(r.output, Catch::Contains("bench.json: cases[0].answer.omega: expected a number"));
+}
