@@ -111,10 +111,14 @@ TEST_CASE("numeric checks: kinetic_growth 0 turns the per-step bound off") {
 TEST_CASE("numeric checks: a NaN made in the backend's drift is blamed on the backend") {
   // The fixture backend's 3rd drift sets particle 0's v_x to NaN; every force (gravity) is
   // finite and the velocity entered the drift finite, so the backend is to blame.
-  const RunResult r = run(R"({"plugin_path": [")" PINSIM_TEST_FIXTURE_DIR R"("],
+  test::FpTrapsOff traps;  // the checks compare the NaN (an invalid operation) on purpose
+  const Scene scene = parse_scene(R"({"plugin_path": [")" PINSIM_TEST_FIXTURE_DIR R"("],
     "time": {"dt": 0.01, "duration": 1.0}, "integrator": "symplectic_euler",
     "backend": {"name": "disc_backend", "params": {"nan_step": 3}},
-    "particles": [{"x": [0, 0], "v": [1, 0]}], "forces": [{"type": "gravity"}]})");
+    "particles": [{"x": [0, 0], "v": [1, 0]}], "forces": [{"type": "gravity"}]})",
+                                  "scene.json", ".", {});
+  PluginLoader loader(plugin_search_dirs(scene.plugin_path));
+  const RunResult r = run_scene(scene, loader, {});
   CHECK(r.exit_code == 1);
   const auto& e = r.summary["error"];
   CHECK(e["kind"] == "numeric");
