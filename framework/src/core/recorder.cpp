@@ -9,9 +9,9 @@ namespace fs = std::filesystem;
 
 namespace pinsim {
 
-const char* const kRunFolderFiles[7] = {"trajectory.csv", "events.csv",  "summary.json",
-                                        "scene.json",     "picture.png", "replay.html",
-                                        "trajectory.h5"};
+const char* const kRunFolderFiles[8] = {"trajectory.csv", "events.csv",  "contacts.csv",
+                                        "summary.json",   "scene.json",  "picture.png",
+                                        "replay.html",    "trajectory.h5"};
 
 namespace {
 /// NAME, NAME.tmp.PID or NAME.crash.PID for a NAME of kRunFolderFiles.
@@ -62,7 +62,7 @@ void append_int(std::string& out, long long v) {
 }  // namespace
 
 Recorder::Recorder(const fs::path& dir, const Scene& scene, bool overwrite)
-    : dir_(dir), scene_(scene) {
+    : dir_(dir), scene_(scene), mode_(scene.output_events) {
   std::error_code ec;
   if (fs::exists(dir_, ec) && !fs::is_directory(dir_, ec))
     throw std::runtime_error(dir_.string() + ": output folder is a file");
@@ -93,12 +93,33 @@ Recorder::Recorder(const fs::path& dir, const Scene& scene, bool overwrite)
     traj_ = std::make_unique<LineFile>(dir_ / "trajectory.csv", "t,particle,x,y,vx,vy\n");
   events_ = std::make_unique<LineFile>(
       dir_ / "events.csv", "t,particle,obstacle,other_particle,x,y,nx,ny,vn_before,vn_after\n");
+  if (mode_ == "impacts") {
+    spans_ = std::make_unique<LineFile>(
+        dir_ / "contacts.csv",
+        "t_begin,t_end,particle,obstacle,other_particle,impulses,impulse,open\n");
+    tracker_ = std::make_unique<ContactTracker>(scene.particles.inv_mass);
+  }
+  // Obstacle ids once: looking them up per event in the scene's JSON cost most of a run's
+  // time when events are many.
+  const std::size_t n_obstacles = scene.backend_scene.is_object() &&
+                                          scene.backend_scene.contains("obstacles") &&
+                                          scene.backend_scene["obstacles"].is_array()
+                                      ? scene.backend_scene["obstacles"].size()
+                                      : 0;
+  obstacle_id_.reserve(n_obstacles);
+  for (std::size_t k = 0; k < n_obstacles; ++k)
+    obstacle_id_.push_back(scene.obstacle_id(static_cast<int64_t>(k)));
 }
 
 void Recorder::close() {
+  if (tracker_) {
+    tracker_->close_all(closed_);
+    write_spans();
+  }
   if (traj_h5_) traj_h5_->close();
   if (traj_) traj_->close();
   events_->close();
+  if (spans_) spans_->close();
 }
 
 void Recorder::flush_buffer(LineFile& f) {
@@ -128,23 +149,67 @@ void Recorder::write_state(const State& s) {
   flush_buffer(*traj_);
 }
 
-void Recorder::write_events(const std::vector<pinsim_event>& events) {
-  for (const auto& e : events) {
-    append_number(buf_, e.t);
-    buf_ += ',';
-    append_int(buf_, e.particle);
-    buf_ += ',';
-    buf_ += e.obstacle >= 0 ? scene_.obstacle_id(e.obstacle) : std::string();
-    buf_ += ',';
-    if (e.other >= 0) append_int(buf_, e.other);
-    for (double v : {e.point[0], e.point[1], e.normal[0], e.normal[1], e.vn_before, e.vn_after}) {
-      buf_ += ',';
-      append_number(buf_, v);
-    }
-    buf_ += '\n';
+void Recorder::append_event(const pinsim_event& e) {
+  append_number(buf_, e.t);
+  buf_ += ',';
+  append_int(buf_, e.particle);
+  buf_ += ',';
+  if (e.obstacle >= 0) {
+    const auto k = static_cast<std::size_t>(e.obstacle);
+    if (k < obstacle_id_.size()) buf_ += obstacle_id_[k];
   }
+  buf_ += ',';
+  if (e.other >= 0) append_int(buf_, e.other);
+  for (double v : {e.point[0], e.point[1], e.normal[0], e.normal[1], e.vn_before, e.vn_after}) {
+    buf_ += ',';
+    append_number(buf_, v);
+  }
+  buf_ += '\n';
+}
+
+void Recorder::write_spans() {
+  for (const ContactSpan& c : closed_) {
+    append_number(buf_, c.t_begin);
+    buf_ += ',';
+    append_number(buf_, c.t_end);
+    buf_ += ',';
+    append_int(buf_, c.particle);
+    buf_ += ',';
+    if (c.obstacle >= 0) {
+      const auto k = static_cast<std::size_t>(c.obstacle);
+      if (k < obstacle_id_.size()) buf_ += obstacle_id_[k];
+    }
+    buf_ += ',';
+    if (c.other >= 0) append_int(buf_, c.other);
+    buf_ += ',';
+    append_int(buf_, static_cast<long long>(c.impulses));
+    buf_ += ',';
+    append_number(buf_, c.impulse);
+    buf_ += c.open ? ",1\n" : ",0\n";
+  }
+  contact_rows_ += closed_.size();
+  closed_.clear();
+  flush_buffer(*spans_);
+}
+
+void Recorder::write_events(const std::vector<pinsim_event>& events, uint64_t step) {
   contacts_ += events.size();
-  flush_buffer(*events_);
+  if (mode_ == "all") {
+    if (events.empty()) return;
+    for (const auto& e : events) append_event(e);
+    event_rows_ += events.size();
+    flush_buffer(*events_);
+  } else if (tracker_) {
+    if (events.empty() && tracker_->open() == 0) return;
+    impacts_.clear();
+    tracker_->step(step, events, impacts_, closed_);
+    if (!impacts_.empty()) {
+      for (const auto& e : impacts_) append_event(e);
+      event_rows_ += impacts_.size();
+      flush_buffer(*events_);
+    }
+    if (!closed_.empty()) write_spans();
+  }
 }
 
 void Recorder::write_summary(const nlohmann::json& summary) {

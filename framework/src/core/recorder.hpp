@@ -1,5 +1,5 @@
-// Run output: trajectory.csv, events.csv, summary.json and scene.json, written incrementally
-// so that a failed or interrupted run leaves valid files.
+// Run output: trajectory.csv, events.csv, contacts.csv, summary.json and scene.json, written
+// incrementally so that a failed or interrupted run leaves valid files.
 #pragma once
 
 #include <pinsim/abi.h>
@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "core/contact_tracker.hpp"
 #include "core/output_file.hpp"
 #include "core/scene.hpp"
 #include "core/trajectory_hdf5.hpp"
@@ -20,7 +21,7 @@ namespace pinsim {
 /// The files pinsim writes into a run folder (`run`, and `render` / `replay` by default):
 /// what `--overwrite` removes before a run, with the temporaries of these names
 /// (NAME.tmp.PID, NAME.crash.PID). Nothing else in the folder is touched.
-extern const char* const kRunFolderFiles[7];
+extern const char* const kRunFolderFiles[8];
 
 class Recorder {
  public:
@@ -36,26 +37,43 @@ class Recorder {
   /// file then ends with its last whole line). With output.format "hdf5", one frame of
   /// trajectory.h5 instead (Hdf5TrajectoryWriter).
   void write_state(const State& s);
-  /// One row per contact; as write_state.
-  void write_events(const std::vector<pinsim_event>& events);
+  /// The impulses of step `step`; call it for every step, with or without impulses. By the
+  /// scene's output.events: "all" writes one events.csv row per impulse; "impacts" one per
+  /// impulse that begins a touch (ContactTracker) and one contacts.csv row per touch when it
+  /// ends; "none" nothing. As write_state.
+  void write_events(const std::vector<pinsim_event>& events, uint64_t step);
   /// Writes summary.json atomically (temporary file, then rename). Throws OutputError.
   void write_summary(const nlohmann::json& summary);
-  /// Closes trajectory.csv and events.csv, checking the closes. Throws OutputError.
+  /// Writes the touches still open (marked open, their end the last impulse's time) and
+  /// closes trajectory.csv, events.csv and contacts.csv, checking the closes. Throws
+  /// OutputError.
   void close();
 
   const std::filesystem::path& dir() const { return dir_; }
   uint64_t contacts() const { return contacts_; }
+  /// Rows written to events.csv and contacts.csv so far.
+  uint64_t event_rows() const { return event_rows_; }
+  uint64_t contact_rows() const { return contact_rows_; }
 
  private:
   void flush_buffer(LineFile& f);
+  void append_event(const pinsim_event& e);
+  void write_spans();
 
   std::filesystem::path dir_;
   const Scene& scene_;
   std::unique_ptr<LineFile> traj_;
   std::unique_ptr<Hdf5TrajectoryWriter> traj_h5_;  ///< instead of traj_ for "hdf5"
   std::unique_ptr<LineFile> events_;
+  std::unique_ptr<LineFile> spans_;  ///< contacts.csv ("impacts" only)
   std::string buf_;
   uint64_t contacts_ = 0;
+  uint64_t event_rows_ = 0, contact_rows_ = 0;
+  std::string mode_;                      ///< the scene's output.events
+  std::vector<std::string> obstacle_id_;  ///< index -> id, built once
+  std::unique_ptr<ContactTracker> tracker_;
+  std::vector<pinsim_event> impacts_;  ///< scratch, reused every step
+  std::vector<ContactSpan> closed_;    ///< scratch, reused every step
 };
 
 /// Removes the files of kRunFolderFiles (and their temporaries) from `dir`. Throws

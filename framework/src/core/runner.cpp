@@ -61,7 +61,7 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
       sim.step();
       contacts += sim.events().size();
       if (rec) {
-        if (!sim.events().empty()) rec->write_events(sim.events());
+        rec->write_events(sim.events(), sim.step_index());
         if (sim.step_index() % scene.output_every == 0 || n + 1 == steps)
           rec->write_state(sim.state());
         CrashSummary::set_step(sim.step_index());
@@ -106,7 +106,10 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
   }
   if (rec && !output_failed) {
     try {
-      if (!sim.events().empty() && status != "ok") rec->write_events(sim.events());
+      // The impulses of a step that failed (an interrupt comes between steps: the last
+      // step's impulses are written already).
+      if (!sim.events().empty() && status == "error")
+        rec->write_events(sim.events(), sim.step_index() + 1);
       rec->close();
     } catch (const OutputError& e) {
       status = "error";
@@ -133,6 +136,10 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
   summary["t_end"] = sim.state().t;
   summary["wall_time_s"] = wall;
   summary["contacts"] = contacts;
+  if (rec)
+    summary["events"] = {{"mode", scene.output_events},
+                         {"events_rows", rec->event_rows()},
+                         {"contacts_rows", rec->contact_rows()}};
   summary["force_evaluations"] = sim.force_evaluations();
   summary["energy"] = {{"start", sim.energy_start()},
                        {"end", std::isfinite(e_end) ? nlohmann::json(e_end) : nlohmann::json()},

@@ -179,12 +179,12 @@ nlohmann::json read_backend_scene(const nlohmann::json& d, const Loc& root) {
   return out;
 }
 
-// output: {"every" >= 1, "format": "csv" | "hdf5"}.
+// output: {"every" >= 1, "format": "csv" | "hdf5", "events": "impacts" | "all" | "none"}.
 void read_output(const nlohmann::json& d, const Loc& root, Scene& s) {
   if (!d.contains("output")) return;
   const auto& o = d.at("output");
   require_object(o, root / "output");
-  check_keys(o, {"every", "format"}, root / "output");
+  check_keys(o, {"every", "format", "events"}, root / "output");
   s.output_every = read_count_or(o, "every", 1, root / "output");
   if (s.output_every == 0) (root / "output" / "every").fail("must be >= 1, got 0");
   s.output_format = read_string_or(o, "format", "csv", root / "output");
@@ -194,6 +194,10 @@ void read_output(const nlohmann::json& d, const Loc& root, Scene& s) {
   if (s.output_format == "hdf5" && !hdf5_supported())
     (root / "output" / "format")
         .fail("\"hdf5\" needs a pinsim built with HDF5 (PINSIM_WITH_HDF5=ON); use \"csv\"");
+  s.output_events = read_string_or(o, "events", s.output_events, root / "output");
+  if (s.output_events != "impacts" && s.output_events != "all" && s.output_events != "none")
+    (root / "output" / "events")
+        .fail("expected \"impacts\", \"all\" or \"none\", got \"" + s.output_events + "\"");
 }
 
 // checks: {"energy_blowup" > 0, "energy_every" >= 1, "kinetic_growth" >= 2 or 0}.

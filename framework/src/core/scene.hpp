@@ -42,6 +42,9 @@ struct Scene {
   nlohmann::json backend_scene;       ///< {"obstacles": [...], "inputs": [...], "contacts": {...}}
   uint64_t output_every = 1;          ///< write the trajectory every N steps
   std::string output_format = "csv";  ///< trajectory.csv ("csv") or trajectory.h5 ("hdf5")
+  /// events.csv: "impacts" (touch begins; spans in contacts.csv), "all" (every impulse) or
+  /// "none"
+  std::string output_events = "impacts";
   double energy_blowup = 1e3;    ///< stop when |E - E0| exceeds this many times the energy scale
   uint64_t energy_every = 100;   ///< check energy every N steps
   double kinetic_growth = 32.0;  ///< G of the per-step kinetic energy bound; 0 = off
