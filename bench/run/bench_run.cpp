@@ -1,0 +1,396 @@
+// bench_run: end-to-end figures. For the same scenes, ns per particle-step of
+//   - the sdf backend alone and Box2D 2.4.1 alone (ball scenes; linked directly, gravity and
+//     symplectic Euler as the framework does them, thread CPU time, bench_world.hpp),
+//   - `pinsim run` with the least output (first and last trajectory frames, no events: the
+//     scene, plugins, integrator and checks), and
+//   - `pinsim run --out DIR` with the scene's default output (trajectory.csv every
+//     output.every steps, events.csv with output.events "impacts", contacts.csv) to a real
+//     file,
+// the last two from the run's own wall time of its step loop (summary.json's wall_time_s),
+// with the max RSS of the run with output. Prints CSV, one row per case:
+//   case,particles,steps,sdf_ns,box2d_ns,box2d_steps,run_min_output_ns,run_ns,
+//   run_over_sdf,run_over_min_output,max_rss_mb,events_rows,contacts_rows
+// Usage: bench_run [--quick] [--threads N] [--work DIR] [--pinsim PATH]
+//   --quick    small cases, a smoke test (ctest): checks it runs, no timing assertions
+//   --threads  passed to `pinsim run --threads N` when pinsim has that flag (else a note)
+//   --work     folder for scenes and run output (default: a new folder under /tmp, removed)
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <random>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "bench_world.hpp"
+#include "box2d_backend.hpp"
+#include "sdf_backend.hpp"
+
+using namespace pinsim;
+using namespace pinsim::bench;
+using nlohmann::json;
+using pinsim::box2d::Box2dBackend;
+using pinsim::sdf::SdfBackend;
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Options {
+  bool quick = false;
+  int threads = 0;  ///< 0: not given
+  std::string pinsim = PINSIM_EXE;
+  fs::path work;
+  bool threads_supported = false;
+};
+
+/// One case: a scene file to run, and for ball scenes the backend-only worlds' inputs.
+struct Case {
+  std::string name;
+  json scene;
+  bool balls = false;   ///< particles are balls under gravity only: backend-only figures
+  int box2d_steps = 0;  ///< Box2D runs this many of the steps (it is 10-40x slower)
+  double radius = 0.0;  ///< balls
+  double mass = 1.0;    ///< balls
+  std::vector<double> x0, v0;
+  json contacts;  ///< ball-ball contacts for the backend, or null
+};
+
+/// What a child run reports.
+struct RunFigures {
+  double loop_s = NAN;  ///< wall time of the step loop
+  double max_rss_mb = NAN;
+  double particles = 0.0;
+  uint64_t events_rows = 0, contacts_rows = 0;
+  bool ok = false;
+};
+
+json read_json_file(const fs::path& p) {
+  std::ifstream in(p);
+  if (!in) throw std::runtime_error(p.string() + ": cannot open");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return json::parse(ss.str(), nullptr, true, true);
+}
+
+// Runs pinsim with `args`, stdout+stderr into `log`; returns the exit status, the child's
+// max RSS in `rss_mb`.
+int spawn(const Options& o, const std::vector<std::string>& args, const fs::path& log,
+          double& rss_mb) {
+  std::fflush(stdout);
+  const pid_t pid = fork();
+  if (pid == 0) {
+    std::FILE* f = std::freopen(log.c_str(), "w", stdout);
+    if (f) dup2(fileno(stdout), 2);
+    std::vector<char*> argv;
+    argv.push_back(const_cast<char*>(o.pinsim.c_str()));
+    for (const auto& a : args) argv.push_back(const_cast<char*>(a.c_str()));
+    argv.push_back(nullptr);
+    execv(o.pinsim.c_str(), argv.data());
+    _exit(127);
+  }
+  int status = 0;
+  rusage ru{};
+  if (pid < 0 || wait4(pid, &status, 0, &ru) < 0) return -1;
+  rss_mb = static_cast<double>(ru.ru_maxrss) / 1024.0;
+  return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
+}
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// `pinsim run --out DIR` on the case's scene: with its default output, or with the least
+// (the trajectory's first and last frames, no events: output.every = steps,
+// output.events none). The step loop's wall time from summary.json (full precision).
+RunFigures run_pinsim(const Options& o, const Case& c, int steps, bool output) {
+  const fs::path scene = o.work / (c.name + ".json");
+  const fs::path out = o.work / (c.name + (output ? ".out" : ".min"));
+  std::vector<std::string> args = {"-q",    "run",        scene.string(),
+                                   "--out", out.string(), "--overwrite"};
+  if (o.threads > 0 && o.threads_supported) {
+    args.push_back("--threads");
+    args.push_back(std::to_string(o.threads));
+  }
+  if (!output)
+    args.insert(args.end(),
+                {"--set", "output.every=" + std::to_string(steps), "--set", "output.events=none"});
+  const fs::path log = o.work / (c.name + (output ? ".run.log" : ".min.log"));
+  RunFigures f;
+  const int rc = spawn(o, args, log, f.max_rss_mb);
+  if (rc != 0) {
+    std::fprintf(stderr, "bench_run: %s: pinsim exited %d (log %s):\n%s\n", c.name.c_str(), rc,
+                 log.c_str(), slurp(log).c_str());
+    return f;
+  }
+  const json s = read_json_file(out / "summary.json");
+  f.loop_s = s.at("wall_time_s").get<double>();
+  f.particles = s.at("particles").get<double>();
+  if (s.contains("events")) {
+    f.events_rows = s["events"].value("events_rows", uint64_t{0});
+    f.contacts_rows = s["events"].value("contacts_rows", uint64_t{0});
+  }
+  f.ok = true;
+  return f;
+}
+
+// Backend alone: ns per ball-step over the case's steps (Box2D: its first box2d_steps).
+template <class B>
+double backend_ns(const Case& c, const json& params, int steps, double gx, double gy) {
+  BenchWorld<B> w(c.scene, params, c.x0, c.v0, c.radius, c.contacts, c.mass);
+  const double dt = c.scene["time"]["dt"];
+  const double t0 = cpu_ns();
+  for (int s = 0; s < steps; ++s) w.step(dt, gx, gy);
+  return (cpu_ns() - t0) / (static_cast<double>(steps) * static_cast<double>(w.w.size()));
+}
+
+json particles_json(const std::vector<double>& x0, const std::vector<double>& v0, double radius,
+                    double mass) {
+  json p = json::array();
+  for (std::size_t i = 0; i < x0.size() / 2; ++i)
+    p.push_back({{"x", {x0[2 * i], x0[2 * i + 1]}},
+                 {"v", {v0[2 * i], v0[2 * i + 1]}},
+                 {"mass", mass},
+                 {"radius", radius}});
+  return p;
+}
+
+// Balls dropped at random into the playfield, clear of the obstacles (as bench_sdf).
+void drop_balls(const SdfBackend& probe, double radius, std::size_t balls, std::vector<double>& x0,
+                std::vector<double>& v0) {
+  std::mt19937_64 rng(42);
+  std::uniform_real_distribution<double> ux(0.05, 0.40), uy(0.35, 0.95), uv(-1.0, 1.0);
+  for (std::size_t i = 0; i < balls; ++i) {
+    double px = 0.0, py = 0.0;
+    do {
+      px = ux(rng);
+      py = uy(rng);
+    } while (probe.distance(Vec2(px, py), 0.0, nullptr) < radius + 1e-3);
+    x0.insert(x0.end(), {px, py});
+    v0.insert(v0.end(), {uv(rng), uv(rng)});
+  }
+}
+
+// Balls on a lattice `spacing` apart (no two overlapping), clear of the obstacles, slow.
+void lattice_balls(const SdfBackend& probe, double radius, double spacing, std::size_t balls,
+                   std::vector<double>& x0, std::vector<double>& v0) {
+  std::mt19937_64 rng(7);
+  std::uniform_real_distribution<double> uv(-0.1, 0.1);
+  for (double py = 0.95; py > 0.05 && x0.size() / 2 < balls; py -= spacing)
+    for (double px = 0.05; px < 0.40 && x0.size() / 2 < balls; px += spacing)
+      if (probe.distance(Vec2(px, py), 0.0, nullptr) > radius + 1e-3) {
+        x0.insert(x0.end(), {px, py});
+        v0.insert(v0.end(), {uv(rng), uv(rng)});
+      }
+}
+
+// A grid_blob cloth nx x ny hanging from its top row over the pinball table's backend-free
+// space, damped springs on its edges and shear springs, gravity.
+// Particles of 0.01 kg and springs soft enough (h w ~ 0.01 .. 0.03 at dt 1e-4, damping ratio
+// ~0.05) that explicit Euler too stays stable over the run.
+json cloth_scene(int nx, int ny, double spacing, int steps, const std::string& integrator,
+                 int every) {
+  const double total_mass = 0.01 * nx * ny;
+  json pin = json::array();
+  for (int i = 0; i < nx; ++i) pin.push_back((ny - 1) * nx + i);
+  return {{"name", "cloth"},
+          {"time", {{"dt", 1e-4}, {"duration", 1e-4 * steps}}},
+          {"integrator", integrator},
+          {"backend", {{"name", "none"}}},
+          {"bodies",
+           {{{"type", "grid_blob"},
+             {"name", "cloth"},
+             {"origin", {0.0, 0.0}},
+             {"nx", nx},
+             {"ny", ny},
+             {"spacing", spacing},
+             {"total_mass", total_mass},
+             {"radius", spacing / 4},
+             {"pin", pin}}}},
+          {"forces",
+           {{{"type", "gravity"}, {"params", {{"g", {0.0, -9.81}}}}},
+            {{"type", "damped_spring"},
+             {"params", {{"ks", 100.0}, {"kd", 0.1}}},
+             {"elements", {{"body", "cloth"}, {"set", "edges"}}}},
+            {{"type", "damped_spring"},
+             {"params", {{"ks", 50.0}, {"kd", 0.05}}},
+             {"elements", {{"body", "cloth"}, {"set", "shear"}}}}}},
+          {"output", {{"every", every}}}};
+}
+
+Case scene_case(const std::string& name, json scene) {
+  Case c;
+  c.name = name;
+  c.scene = std::move(scene);
+  return c;
+}
+
+std::vector<Case> make_cases(const Options& o, const json& pinball) {
+  std::vector<Case> cases;
+  const double r = pinball["particles"][0]["radius"];
+  BenchWorld<SdfBackend> probe(pinball, params_for<SdfBackend>(pinball["backend"]["params"]), {},
+                               {}, r);
+  auto ball_case = [&](const std::string& name, std::size_t n, int steps, bool pairs) {
+    Case c;
+    c.name = name;
+    c.scene = pinball;
+    c.balls = true;
+    c.radius = r;
+    c.mass = 1.0;
+    if (pairs) {
+      c.radius = 0.002;
+      lattice_balls(*probe.be, c.radius, 0.0045, n, c.x0, c.v0);
+      c.contacts = {{"particles", true}, {"restitution", 0.5}};
+      c.scene["contacts"] = c.contacts;
+    } else {
+      drop_balls(*probe.be, r, n, c.x0, c.v0);
+    }
+    c.scene["particles"] = particles_json(c.x0, c.v0, c.radius, c.mass);
+    c.scene["time"]["duration"] = steps * c.scene["time"]["dt"].get<double>();
+    c.box2d_steps = std::min(steps, static_cast<int>(std::max<std::size_t>(2000000 / n, 20)));
+    cases.push_back(std::move(c));
+  };
+  // The scene's own ball, whole run.
+  Case own;
+  own.name = "scene_ball";
+  own.scene = pinball;
+  own.balls = true;
+  own.radius = r;
+  own.mass = pinball["particles"][0].value("mass", 1.0);
+  own.x0 = {pinball["particles"][0]["x"][0], pinball["particles"][0]["x"][1]};
+  own.v0 = {0.0, 0.0};
+  const double dt = pinball["time"]["dt"];
+  const int own_steps =
+      o.quick ? 500 : static_cast<int>(std::lround(pinball["time"]["duration"].get<double>() / dt));
+  own.scene["time"]["duration"] = own_steps * dt;
+  own.box2d_steps = own_steps;
+  cases.push_back(own);
+  if (o.quick) {
+    ball_case("drop_100", 100, 200, false);
+    ball_case("drop_100_ball_contacts", 100, 200, true);
+    cases.push_back(scene_case("cloth_10x10_symplectic_euler",
+                               cloth_scene(10, 10, 0.02, 200, "symplectic_euler", 20)));
+    cases.push_back(
+        scene_case("springs_10k", cloth_scene(100, 50, 0.01, 20, "symplectic_euler", 10)));
+    return cases;
+  }
+  // 3 s simulated (g = 1.11 m/s^2 along the table): the balls have fallen and lie in piles.
+  ball_case("drop_100_settled", 100, 15000, false);
+  ball_case("drop_10000_settled", 10000, 15000, false);
+  ball_case("drop_10000_ball_contacts", 10000, 5000, true);
+  for (const char* integ :
+       {"explicit_euler", "symplectic_euler", "velocity_verlet", "rk4", "implicit_euler"})
+    cases.push_back(scene_case(std::string("cloth_100x100_") + integ,
+                               cloth_scene(100, 100, 0.01, 2000, integ, 100)));
+  // 501 x 1000 grid: 1,000,499 edge springs (the shear springs dropped).
+  Case springs =
+      scene_case("springs_1M", cloth_scene(501, 1000, 0.002, 300, "symplectic_euler", 100));
+  springs.scene["forces"].erase(2);  // edges only
+  cases.push_back(springs);
+  return cases;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  Options o;
+  bool keep = false;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--quick") {
+      o.quick = true;
+    } else if (a == "--threads" && i + 1 < argc) {
+      o.threads = std::atoi(argv[++i]);
+    } else if (a == "--work" && i + 1 < argc) {
+      o.work = argv[++i];
+      keep = true;
+    } else if (a == "--pinsim" && i + 1 < argc) {
+      o.pinsim = argv[++i];
+    } else {
+      std::fprintf(stderr,
+                   "usage: bench_run [--quick] [--threads N] [--work DIR] [--pinsim PATH]\n");
+      return 2;
+    }
+  }
+  if (o.work.empty()) {
+    char tmpl[] = "/tmp/bench_run.XXXXXX";
+    if (!mkdtemp(tmpl)) {
+      std::perror("bench_run: mkdtemp");
+      return 1;
+    }
+    o.work = tmpl;
+  }
+  fs::create_directories(o.work);
+  {
+    double rss = 0.0;
+    spawn(o, {"run", "--help"}, o.work / "help.log", rss);
+    o.threads_supported = slurp(o.work / "help.log").find("--threads") != std::string::npos;
+  }
+  if (o.threads > 0 && !o.threads_supported)
+    std::fprintf(stderr, "bench_run: note: `pinsim run` has no --threads yet; ignored\n");
+
+  const json pinball = read_json_file(fs::path(PINSIM_CONFIG_DIR) / "pinball.json");
+  const std::vector<Case> cases = make_cases(o, pinball);
+  const double gx = pinball["forces"][0]["params"]["g"][0],
+               gy = pinball["forces"][0]["params"]["g"][1];
+  json box2d_params = pinball["crosscheck"]["params"]["box2d"];
+
+  std::printf(
+      "case,particles,steps,sdf_ns,box2d_ns,box2d_steps,run_min_output_ns,run_ns,run_over_sdf,"
+      "run_over_min_output,max_rss_mb,events_rows,contacts_rows\n");
+  int failures = 0;
+  for (const Case& c : cases) {
+    {
+      std::ofstream f(o.work / (c.name + ".json"));
+      f << c.scene.dump(1) << "\n";
+    }
+    const double dt = c.scene["time"]["dt"];
+    const int steps = static_cast<int>(std::lround(c.scene["time"]["duration"].get<double>() / dt));
+    double sdf = NAN, box2d = NAN;
+    if (c.balls) {
+      sdf = backend_ns<SdfBackend>(c, params_for<SdfBackend>(c.scene["backend"]["params"]), steps,
+                                   gx, gy);
+      try {
+        box2d = backend_ns<Box2dBackend>(c, params_for<Box2dBackend>(box2d_params), c.box2d_steps,
+                                         gx, gy);
+      } catch (const std::exception& e) {
+        std::fprintf(stderr, "bench_run: %s: box2d failed: %s\n", c.name.c_str(), e.what());
+      }
+    }
+    const RunFigures bare = run_pinsim(o, c, steps, false);
+    const RunFigures out = run_pinsim(o, c, steps, true);
+    failures += !bare.ok + !out.ok;
+    // Particles from the run's own summary (bodies generate theirs).
+    const double particles = out.ok ? out.particles : static_cast<double>(c.x0.size() / 2);
+    const double per = 1e9 / (static_cast<double>(steps) * particles);
+    const double run_ns = out.loop_s * per, bare_ns = bare.loop_s * per;
+    std::printf("%s,%.0f,%d,%.2f,%.2f,%d,%.2f,%.2f,%.2f,%.2f,%.1f,%llu,%llu\n", c.name.c_str(),
+                particles, steps, sdf, box2d, c.balls ? c.box2d_steps : 0, bare_ns, run_ns,
+                run_ns / sdf, run_ns / bare_ns, out.max_rss_mb,
+                static_cast<unsigned long long>(out.events_rows),
+                static_cast<unsigned long long>(out.contacts_rows));
+    std::fflush(stdout);
+    // Sane figures: every measured one finite and positive (no timing limits).
+    for (double v : {run_ns, bare_ns, c.balls ? sdf : 1.0, out.max_rss_mb})
+      if (!(std::isfinite(v) && v > 0.0)) {
+        std::fprintf(stderr, "bench_run: %s: a figure is not a positive number\n", c.name.c_str());
+        ++failures;
+        break;
+      }
+    if (!keep) {
+      fs::remove_all(o.work / (c.name + ".out"));
+      fs::remove_all(o.work / (c.name + ".min"));
+    }
+  }
+  if (!keep) fs::remove_all(o.work);
+  return failures ? 1 : 0;
+}
