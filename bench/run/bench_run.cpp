@@ -6,8 +6,10 @@
 //   - `pinsim run --out DIR` with the scene's default output (trajectory.csv every
 //     output.every steps, events.csv with output.events "impacts", contacts.csv) to a real
 //     file,
-// the last two from the run's own wall time of its step loop (summary.json's wall_time_s),
-// with the max RSS of the run with output. Prints CSV, one row per case:
+// the last two from the CPU time of the run's step loop (summary.json's cpu_time_s: process
+// CPU time, as the backend-only figures use CPU time on a possibly shared machine); also the
+// loop's wall time (wall_time_s) and the max RSS of the run with output. Prints CSV, one
+// row per case:
 //   case,particles,steps,sdf_ns,box2d_ns,box2d_steps,run_min_output_ns,run_ns,
 //   run_over_sdf,run_over_min_output,max_rss_mb,events_rows,contacts_rows
 // Usage: bench_run [--quick] [--threads N] [--work DIR] [--pinsim PATH]
@@ -66,6 +68,7 @@ struct Case {
 struct RunFigures {
   double loop_s = NAN;  ///< wall time of the step loop
   double max_rss_mb = NAN;
+  double cpu_s = NAN;  ///< CPU time of the step loop (summary.json's cpu_time_s)
   double particles = 0.0;
   uint64_t events_rows = 0, contacts_rows = 0;
   bool ok = false;
@@ -82,7 +85,7 @@ json read_json_file(const fs::path& p) {
 // Runs pinsim with `args`, stdout+stderr into `log`; returns the exit status, the child's
 // max RSS in `rss_mb`.
 int spawn(const Options& o, const std::vector<std::string>& args, const fs::path& log,
-          double& rss_mb) {
+          double& rss_mb, double* cpu_s = nullptr) {
   std::fflush(stdout);
   const pid_t pid = fork();
   if (pid == 0) {
@@ -99,6 +102,9 @@ int spawn(const Options& o, const std::vector<std::string>& args, const fs::path
   rusage ru{};
   if (pid < 0 || wait4(pid, &status, 0, &ru) < 0) return -1;
   rss_mb = static_cast<double>(ru.ru_maxrss) / 1024.0;
+  if (cpu_s)
+    *cpu_s = static_cast<double>(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) +
+             1e-6 * static_cast<double>(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
   return WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
 }
 
@@ -109,10 +115,13 @@ std::string slurp(const fs::path& p) {
   return ss.str();
 }
 
+enum class Output { kDefault, kLeast };
+
 // `pinsim run --out DIR` on the case's scene: with its default output, or with the least
-// (the trajectory's first and last frames, no events: output.every = steps,
-// output.events none). The step loop's wall time from summary.json (full precision).
-RunFigures run_pinsim(const Options& o, const Case& c, int steps, bool output) {
+// (the trajectory's first and last frames, no events: output.every = steps, output.events
+// none).
+RunFigures run_pinsim(const Options& o, const Case& c, int steps, Output mode) {
+  const bool output = mode == Output::kDefault;
   const fs::path scene = o.work / (c.name + ".json");
   const fs::path out = o.work / (c.name + (output ? ".out" : ".min"));
   std::vector<std::string> args = {"-q",    "run",        scene.string(),
@@ -134,6 +143,7 @@ RunFigures run_pinsim(const Options& o, const Case& c, int steps, bool output) {
   }
   const json s = read_json_file(out / "summary.json");
   f.loop_s = s.at("wall_time_s").get<double>();
+  f.cpu_s = s.at("cpu_time_s").get<double>();
   f.particles = s.at("particles").get<double>();
   if (s.contains("events")) {
     f.events_rows = s["events"].value("events_rows", uint64_t{0});
@@ -346,7 +356,7 @@ int main(int argc, char** argv) {
 
   std::printf(
       "case,particles,steps,sdf_ns,box2d_ns,box2d_steps,run_min_output_ns,run_ns,run_over_sdf,"
-      "run_over_min_output,max_rss_mb,events_rows,contacts_rows\n");
+      "run_over_min_output,run_wall_ns,max_rss_mb,events_rows,contacts_rows\n");
   int failures = 0;
   for (const Case& c : cases) {
     {
@@ -366,21 +376,22 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "bench_run: %s: box2d failed: %s\n", c.name.c_str(), e.what());
       }
     }
-    const RunFigures bare = run_pinsim(o, c, steps, false);
-    const RunFigures out = run_pinsim(o, c, steps, true);
+    const RunFigures bare = run_pinsim(o, c, steps, Output::kLeast);
+    const RunFigures out = run_pinsim(o, c, steps, Output::kDefault);
     failures += !bare.ok + !out.ok;
     // Particles from the run's own summary (bodies generate theirs).
     const double particles = out.ok ? out.particles : static_cast<double>(c.x0.size() / 2);
     const double per = 1e9 / (static_cast<double>(steps) * particles);
-    const double run_ns = out.loop_s * per, bare_ns = bare.loop_s * per;
-    std::printf("%s,%.0f,%d,%.2f,%.2f,%d,%.2f,%.2f,%.2f,%.2f,%.1f,%llu,%llu\n", c.name.c_str(),
+    // CPU time, as the backend-only figures (the machine may be shared).
+    const double run_ns = out.cpu_s * per, bare_ns = bare.cpu_s * per, wall_ns = out.loop_s * per;
+    std::printf("%s,%.0f,%d,%.2f,%.2f,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%llu,%llu\n", c.name.c_str(),
                 particles, steps, sdf, box2d, c.balls ? c.box2d_steps : 0, bare_ns, run_ns,
-                run_ns / sdf, run_ns / bare_ns, out.max_rss_mb,
+                run_ns / sdf, run_ns / bare_ns, wall_ns, out.max_rss_mb,
                 static_cast<unsigned long long>(out.events_rows),
                 static_cast<unsigned long long>(out.contacts_rows));
     std::fflush(stdout);
     // Sane figures: every measured one finite and positive (no timing limits).
-    for (double v : {run_ns, bare_ns, c.balls ? sdf : 1.0, out.max_rss_mb})
+    for (double v : {run_ns, bare_ns, wall_ns, c.balls ? sdf : 1.0, out.max_rss_mb})
       if (!(std::isfinite(v) && v > 0.0)) {
         std::fprintf(stderr, "bench_run: %s: a figure is not a positive number\n", c.name.c_str());
         ++failures;

@@ -1,6 +1,7 @@
 #include "core/runner.hpp"
 
 #include <spdlog/spdlog.h>
+#include <time.h>
 
 #include <chrono>
 #include <memory>
@@ -11,6 +12,15 @@
 #include "core/stop_signals.hpp"
 
 namespace pinsim {
+
+namespace {
+/// CPU time of the process (every thread), s.
+double process_cpu_s() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+}  // namespace
 
 RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings& settings) {
   Simulation sim(scene, loader, settings.options);
@@ -43,6 +53,7 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
 
   const uint64_t steps = scene.steps();
   const auto start = std::chrono::steady_clock::now();
+  const double cpu_start = process_cpu_s();
   auto last_progress = start;
   RunResult result;
   std::string status = "ok";
@@ -123,6 +134,7 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
   }
   const double wall =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double cpu = process_cpu_s() - cpu_start;
 
   // Energy at the end (guarded: the state may be non-finite after a failure).
   double e_end = 0.0;
@@ -135,6 +147,7 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
   summary["steps"] = sim.step_index();
   summary["t_end"] = sim.state().t;
   summary["wall_time_s"] = wall;
+  summary["cpu_time_s"] = cpu;
   summary["contacts"] = contacts;
   if (rec)
     summary["events"] = {{"mode", scene.output_events},
