@@ -101,7 +101,7 @@ TEST_CASE("events: a dropped ball gives one impact at free fall's time and one o
   CHECK(summary["contacts"].get<double>() == Approx(std::stod(c[5])));
 }
 
-TEST_CASE("events: \"all\" writes every impulse, \"none\" none; the trajectory never changes") {
+TEST_CASE("events: \"all\" writes every impulse, \"none\" none, the trajectory never changes") {
   const auto d_imp = test::temp_dir("events_mode_impacts");
   const auto d_all = test::temp_dir("events_mode_all");
   const auto d_none = test::temp_dir("events_mode_none");
@@ -129,7 +129,7 @@ TEST_CASE("events: \"all\" writes every impulse, \"none\" none; the trajectory n
 }
 
 TEST_CASE(
-    "events: a ball bouncing between walls: each touch is its own impact, each its own impact") {
+    "events: a ball bouncing between walls: each touch is its own impact") {
   // Restitution 1, no gravity, inside a 2 m box: at 5 m/s it hits a wall at t = (1 - R) / v
   // and every (2 - 2 R) / v after (0.19, 0.57, 0.95 s); each touch is one impulse. The
   // backend stops depth_min (1e-6 by default) short: 1e-5 s of slack.
