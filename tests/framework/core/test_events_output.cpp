@@ -128,8 +128,7 @@ TEST_CASE("events: \"all\" writes every impulse, \"none\" none, the trajectory n
   CHECK(test::read_file(d_none / "trajectory.csv") == traj);
 }
 
-TEST_CASE(
-    "events: a ball bouncing between walls: each touch is its own impact") {
+TEST_CASE("events: a ball bouncing between walls: each touch is its own impact") {
   // Restitution 1, no gravity, inside a 2 m box: at 5 m/s it hits a wall at t = (1 - R) / v
   // and every (2 - 2 R) / v after (0.19, 0.57, 0.95 s); each touch is one impulse. The
   // backend stops depth_min (1e-6 by default) short: 1e-5 s of slack.
