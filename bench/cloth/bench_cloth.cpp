@@ -92,6 +92,7 @@ int main(int argc, char** argv) {
     const auto st = sim.integrator_stats();
     std::printf("implicit_cg_iterations_per_solve,%.2f,\n",
                 st.value("cg_iterations_per_solve", 0.0));
+    std::printf("implicit_bicgstab_solves_of_50,%d,\n", st.value("bicgstab_solves", 0));
   }
 
   for (const char* format : {"csv", "hdf5"}) {

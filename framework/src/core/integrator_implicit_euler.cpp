@@ -21,17 +21,21 @@ namespace {
 /// then the backend drifts x with v_{n+1}. Exact backward Euler for linear forces: on the
 /// harmonic oscillator the energy shrinks by exactly 1/(1 + (h w)^2) per step, for any h.
 /// Pinned dofs (inv_mass 0) keep dv = 0: their rows and columns become the identity.
-/// The system is taken as symmetric (K and D are for conservative and spring-damping forces;
-/// but a damped spring's df/dx has a nonsymmetric term -kd J^T (H v)^T, for which CG
-/// solves with A^T: see docs/bench_and_stress.md, "Known issue") and is
-/// solved by conjugate gradients with a Jacobi (diagonal) preconditioner to a relative
-/// residual of 1e-12, started from the last step's dv (warm start: a smooth motion changes
-/// dv little from step to step) when that guess's residual is below |b|, else from 0. A is
-/// assembled in a sparsity pattern built once (rebuilt only if the forces' entries move): no
-/// sorting or allocation per step; if CG fails (an indefinite K from compressed springs can do
-/// that) a sparse LU solves it instead. If that fails too (a singular system, or a residual above
-/// 1e-8 of |b|), the step throws NumericError (solver_failure) rather than use an unconverged
-/// velocity. stats() reports the solves for summary.json.
+/// A is symmetric for conservative forces, but not always: a damped spring's df/dx has the
+/// nonsymmetric term -kd J^T (H v)^T when the spring turns. Eigen's ConjugateGradient with
+/// Lower|Upper on a column-major matrix multiplies by A^T (it assumes symmetry), so on such a
+/// system it would solve A^T dv = b. Each step therefore checks A's symmetry up to rounding
+/// (every slot against the slot of its transpose entry, found once with the pattern; see
+/// is_symmetric()) and solves a symmetric A by conjugate gradients, a nonsymmetric
+/// one by BiCGSTAB (which multiplies by A itself), both with a Jacobi (diagonal)
+/// preconditioner to a relative residual of 1e-12, started from the last step's dv (warm
+/// start: a smooth motion changes dv little from step to step) when that guess's residual is
+/// below |b|, else from 0. A is assembled in a sparsity pattern built once (rebuilt only if
+/// the forces' entries move): no sorting or allocation per step; if the iterative solve fails
+/// (an indefinite K from compressed springs can make CG fail) a sparse LU solves it instead. If
+/// that fails too (a singular system, or a residual above 1e-8 of |b|), the step throws
+/// NumericError (solver_failure) rather than use an unconverged velocity. stats() reports the
+/// solves for summary.json.
 ///
 /// A converged solve can still be meaningless. CG stops at |A dv - b| <= 1e-12 |b|, and a
 /// very stiff force makes |b| huge (h^2 K v) while the soft directions of A keep eigenvalues
@@ -72,10 +76,10 @@ class ImplicitEuler : public Integrator {
     for (Eigen::Index i = 0; i < n; ++i)
       if (!(m[i] > 0.0)) b_[i] = 0.0;
     const Eigen::VectorXd& b = b_;
-    cg_.setTolerance(1e-12);
-    cg_.setMaxIterations(options_.cg_max_iterations > 0 ? options_.cg_max_iterations
-                                                        : std::max<Eigen::Index>(100, 4 * n));
-    cg_.compute(A_);
+    const bool symmetric = is_symmetric();
+    const Eigen::Index max_iterations = options_.cg_max_iterations > 0
+                                            ? options_.cg_max_iterations
+                                            : std::max<Eigen::Index>(100, 4 * n);
     // Warm start from the last step's dv (the same size: same particles); the first step
     // starts from 0. Deterministic: the guess is the previous step's result.
     // Only a guess that beats 0 (|b - A dv_| < |b|): when the velocities shrink fast (a very
@@ -84,17 +88,38 @@ class ImplicitEuler : public Integrator {
     if (dv_.size() != n) dv_.setZero(n);
     r_.noalias() = b - A_ * dv_;
     if (!(r_.squaredNorm() < b.squaredNorm())) dv_.setZero();
-    dv_ = cg_.solveWithGuess(b, dv_);
+    Eigen::Index iterations = 0;
+    double residual = 0.0;
+    bool converged = false;
+    const char* method = symmetric ? "conjugate gradients" : "BiCGSTAB";
+    if (symmetric) {
+      cg_.setTolerance(1e-12);
+      cg_.setMaxIterations(max_iterations);
+      cg_.compute(A_);
+      dv_ = cg_.solveWithGuess(b, dv_);
+      iterations = cg_.iterations();
+      residual = cg_.error();
+      converged = cg_.info() == Eigen::Success;
+    } else {
+      ++bicgstab_solves_;
+      bicgstab_.setTolerance(1e-12);
+      bicgstab_.setMaxIterations(max_iterations);
+      bicgstab_.compute(A_);
+      dv_ = bicgstab_.solveWithGuess(b, dv_);
+      iterations = bicgstab_.iterations();
+      residual = bicgstab_.error();
+      converged = bicgstab_.info() == Eigen::Success;
+    }
+    const double krylov_residual = residual;
     Eigen::VectorXd& dv = dv_;
     ++solves_;
-    cg_iterations_ += static_cast<uint64_t>(cg_.iterations());
-    cg_iterations_max_ = std::max(cg_iterations_max_, static_cast<uint64_t>(cg_.iterations()));
-    double residual = cg_.error();
-    if (cg_.info() != Eigen::Success) {
+    cg_iterations_ += static_cast<uint64_t>(iterations);
+    cg_iterations_max_ = std::max(cg_iterations_max_, static_cast<uint64_t>(iterations));
+    if (!converged) {
       spdlog::debug(
-          "implicit_euler: conjugate gradients stopped at residual {:.3g} after {} "
-          "iterations; solving with sparse LU",
-          cg_.error(), cg_.iterations());
+          "implicit_euler: {} stopped at residual {:.3g} after {} iterations; solving "
+          "with sparse LU",
+          method, krylov_residual, iterations);
       ++lu_fallbacks_;
       Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
       lu.compute(A_);
@@ -105,9 +130,9 @@ class ImplicitEuler : public Integrator {
       if (!(residual <= 1e-8))
         throw NumericError(
             NumericError::Kind::SolverFailure,
-            fmt::format("implicit_euler: the linear solve failed: conjugate gradients stopped "
+            fmt::format("implicit_euler: the linear solve failed: {} stopped "
                         "at relative residual {:.3g} after {} iterations, and sparse LU {}{}",
-                        cg_.error(), cg_.iterations(),
+                        method, krylov_residual, iterations,
                         factored ? fmt::format("left relative residual {:.3g}", residual)
                                  : std::string("could not factorize the system (singular?)"),
                         stiffness_text(sim, s, h)),
@@ -154,6 +179,29 @@ class ImplicitEuler : public Integrator {
     return true;
   }
 
+  /// Whether A_ is symmetric up to rounding: |a_ij - a_ji| <= 1e-13 (a_ii a_jj)^1/2 for
+  /// every off-diagonal slot, compared with the slot of its transpose entry (tslot_, found by
+  /// pattern(); -1 if the pattern lacks it: then the bound applies to a_ij alone). The
+  /// entries of a symmetric Jacobian are sums whose order and rounding can differ between
+  /// (i, j) and (j, i) by a few ulps of the diagonal; CG's product with A^T instead of A then
+  /// errs by under 1e-13 of the Jacobi-scaled A per entry, the order of its own 1e-12
+  /// tolerance. A real asymmetry (a turning damped spring) is far above that. A NaN fails.
+  bool is_symmetric() const {
+    const double* a = A_.valuePtr();
+    const Eigen::Index n = A_.cols();
+    for (Eigen::Index c = 0; c < n; ++c) {
+      const double dc = std::abs(a[diag_slot_[static_cast<std::size_t>(c)]]);
+      for (Eigen::Index j = A_.outerIndexPtr()[c]; j < A_.outerIndexPtr()[c + 1]; ++j) {
+        const int64_t t = tslot_[static_cast<std::size_t>(j)];
+        if (t >= 0 && t <= j) continue;  // the diagonal, or a pair seen from the other side
+        const double dr = std::abs(a[diag_slot_[static_cast<std::size_t>(A_.innerIndexPtr()[j])]]);
+        const double diff = t < 0 ? a[j] : a[j] - a[t];
+        if (!(std::abs(diff) <= 1e-13 * std::sqrt(dr * dc))) return false;
+      }
+    }
+    return true;
+  }
+
   bool same_size_and_pins(Eigen::Index n) const {
     if (A_.rows() != n || slot_x_.size() != tx_.size() || slot_v_.size() != tv_.size())
       return false;
@@ -195,6 +243,17 @@ class ImplicitEuler : public Integrator {
     slots(tv_, slot_v_, key_v_);
     diag_slot_.resize(static_cast<std::size_t>(n));
     for (Eigen::Index i = 0; i < n; ++i) diag_slot_[static_cast<std::size_t>(i)] = slot(i, i);
+    // The slot of each slot's transpose entry (the pattern need not be symmetric).
+    tslot_.resize(static_cast<std::size_t>(A_.nonZeros()));
+    for (Eigen::Index c = 0; c < n; ++c)
+      for (Eigen::Index j = A_.outerIndexPtr()[c]; j < A_.outerIndexPtr()[c + 1]; ++j) {
+        const Eigen::Index r = A_.innerIndexPtr()[j];
+        const int* first = A_.innerIndexPtr() + A_.outerIndexPtr()[r];
+        const int* last = A_.innerIndexPtr() + A_.outerIndexPtr()[r + 1];
+        const int* at = std::lower_bound(first, last, static_cast<int>(c));
+        tslot_[static_cast<std::size_t>(j)] =
+            at != last && *at == static_cast<int>(c) ? at - A_.innerIndexPtr() : -1;
+      }
     ksum_.resize(A_.nonZeros());
     dsum_.resize(A_.nonZeros());
   }
@@ -269,24 +328,29 @@ class ImplicitEuler : public Integrator {
          solves_ > 0 ? static_cast<double>(cg_iterations_) / static_cast<double>(solves_) : 0.0},
         {"cg_iterations_max", cg_iterations_max_},
         {"worst_relative_residual", worst_residual_},
-        {"lu_fallbacks", lu_fallbacks_}};
+        {"lu_fallbacks", lu_fallbacks_},
+        {"bicgstab_solves", bicgstab_solves_}};
   }
 
  private:
   ImplicitEulerOptions options_;
   Eigen::VectorXd dv_;  ///< the last step's velocity change: the next solve's first guess
-  uint64_t solves_ = 0, cg_iterations_ = 0, cg_iterations_max_ = 0, lu_fallbacks_ = 0;
+  uint64_t solves_ = 0, cg_iterations_ = 0, cg_iterations_max_ = 0, lu_fallbacks_ = 0,
+           bicgstab_solves_ = 0;  ///< solves of a nonsymmetric A (BiCGSTAB, maybe then LU)
   double worst_residual_ = 0.0;
   Eigen::Matrix2Xd f_;
   std::vector<Eigen::Triplet<double>> tx_, tv_;  ///< df/dx, df/dv entries (kept capacity)
   Eigen::VectorXd m_, kv_, b_, r_;               ///< masses (0: pinned), K v_n, right side
   // The pattern of A_: the slot of each entry in A_'s values (-1: a pinned row or column),
   // the entries' positions (row * n + col) and free dofs it was built for, each diagonal's slot.
-  std::vector<int64_t> slot_x_, slot_v_, key_x_, key_v_, diag_slot_;
+  // tslot_: per slot of A_, the slot of its transpose entry (-1: not in the pattern).
+  std::vector<int64_t> slot_x_, slot_v_, key_x_, key_v_, diag_slot_, tslot_;
   std::vector<bool> free_;
   Eigen::VectorXd ksum_, dsum_;  ///< per slot: sum of df/dx, of df/dv
   Eigen::SparseMatrix<double> A_;
+  // CG for a symmetric A (it multiplies by A^T); BiCGSTAB for a nonsymmetric one.
   Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg_;
+  Eigen::BiCGSTAB<Eigen::SparseMatrix<double>, Eigen::DiagonalPreconditioner<double>> bicgstab_;
 };
 
 }  // namespace

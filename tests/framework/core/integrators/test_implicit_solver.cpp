@@ -1,6 +1,7 @@
 // Implicit Euler's linear solve: the warm-started, Jacobi-preconditioned conjugate gradients
-// against the closed-form backward Euler step of one damped spring, its solver figures, and
-// a forced fallback to sparse LU (reported, and giving the same answer).
+// against the closed-form backward Euler step of one damped spring, its solver figures, a
+// forced fallback to sparse LU (reported, and giving the same answer), and a damped chain
+// whose system is nonsymmetric (BiCGSTAB, agreeing with sparse LU on A itself).
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -18,18 +19,30 @@ namespace {
 
 Scene make_scene(const json& doc) { return parse_scene(doc.dump(), "solver", "."); }
 
-// A hanging chain of springs (each step one linear solve of 2 x 12 dofs). Undamped
-// (kd = 0): a damped spring's df/dx has the nonsymmetric term -kd J^T (H v)^T, and Eigen's
-// ConjugateGradient with Lower|Upper multiplies by A^T (it assumes symmetry), so with
-// damping CG and LU solve different systems (see docs/bench_and_stress.md).
-json chain() {
-  return json::parse(R"({"time": {"dt": 0.01, "duration": 0.2},
+// A chain of springs pinned at one end, starting straight along x and falling under gravity
+// (each step one linear solve of 2 x 12 dofs). Undamped (kd = 0) A is symmetric; damped, the
+// springs turn as the chain swings down (a motion sideways to them) and a damped spring's
+// df/dx has the nonsymmetric term -kd J^T (H v)^T.
+json chain(double kd = 0.0) {
+  json doc = json::parse(R"({"time": {"dt": 0.01, "duration": 0.2},
     "integrator": "implicit_euler",
     "bodies": [{"type": "strand", "name": "chain", "root": [0, 0], "direction": [1, 0],
                 "count": 12, "segment_length": 0.1, "mass": 0.1, "pin": [0]}],
     "forces": [{"type": "gravity"},
                {"type": "damped_spring", "params": {"ks": 500, "kd": 0},
                 "elements": {"body": "chain", "set": "edges"}}]})");
+  doc["forces"][1]["params"]["kd"] = kd;
+  return doc;
+}
+
+/// Steps `sim` with its own integrator and `other` with `forced` (as Simulation::step does
+/// around its integrator: the time after the step, which forces may depend on).
+void step_both(Simulation& sim, Simulation& other, Integrator& forced, int steps) {
+  for (int n = 0; n < steps; ++n) {
+    sim.step();
+    forced.step(other, 0.01);
+    other.state().t = static_cast<double>(n + 1) * 0.01;
+  }
 }
 
 }  // namespace
@@ -78,13 +91,7 @@ TEST_CASE("implicit Euler: solver figures are sane and a forced LU fallback is r
   // springs coupling neighbours): the solves fall back to sparse LU.
   auto forced = make_implicit_euler(ImplicitEulerOptions{1});
   const int steps = 20;
-  for (int n = 0; n < steps; ++n) {
-    cg.step();
-    // As Simulation::step does around its own integrator: the time after the step (forces
-    // may depend on it; the springs take their rest lengths at t = 0).
-    forced->step(lu, 0.01);
-    lu.state().t = static_cast<double>(n + 1) * 0.01;
-  }
+  step_both(cg, lu, *forced, steps);
   const json a = cg.integrator_stats(), b = forced->stats();
   INFO(a.dump() << "\n" << b.dump());
   CHECK(a["linear_solves"] == steps);
@@ -93,6 +100,7 @@ TEST_CASE("implicit Euler: solver figures are sane and a forced LU fallback is r
   CHECK(a["cg_iterations_max"].get<int>() <= 100);
   CHECK(a["cg_iterations_per_solve"].get<double>() <= a["cg_iterations_max"].get<double>());
   CHECK(a["worst_relative_residual"].get<double>() <= 1e-12);
+  CHECK(a["bicgstab_solves"] == 0);  // undamped: A is symmetric, CG throughout
   CHECK(b["linear_solves"] == steps);
   // All but the first: the chain starts straight and at rest, where the springs are at
   // their rest lengths, K has no y part and A restricted to y is M, which Jacobi-CG solves
@@ -105,5 +113,34 @@ TEST_CASE("implicit Euler: solver figures are sane and a forced LU fallback is r
     for (int d = 0; d < 2; ++d) {
       CHECK(lu.state().x(d, i) == Approx(cg.state().x(d, i)).epsilon(1e-9).margin(1e-12));
       CHECK(lu.state().v(d, i) == Approx(cg.state().v(d, i)).epsilon(1e-8).margin(1e-10));
+    }
+}
+
+TEST_CASE("implicit Euler: a damped chain's nonsymmetric system is solved, not its transpose") {
+  // Damped, the chain's A = M - h D - h^2 K is nonsymmetric once the springs turn (-kd J^T
+  // (H v)^T in df/dx). The iterative solve must be of A itself: it agrees with sparse LU of
+  // the same A (forced by a one-iteration limit). Before the fix CG was used, which for a
+  // column-major matrix with Lower|Upper multiplies by A^T: the two runs differed by about
+  // 2 % after 20 steps.
+  PluginLoader loader(plugin_search_dirs());
+  Simulation it(make_scene(chain(2.0)), loader), lu(make_scene(chain(2.0)), loader);
+  auto forced = make_implicit_euler(ImplicitEulerOptions{1});
+  const int steps = 20;
+  step_both(it, lu, *forced, steps);
+  const json a = it.integrator_stats(), b = forced->stats();
+  INFO(a.dump() << "\n" << b.dump());
+  CHECK(a["linear_solves"] == steps);
+  CHECK(a["lu_fallbacks"] == 0);
+  // The first step starts at rest (v = 0: the nonsymmetric term vanishes), the others not.
+  CHECK(a.value("bicgstab_solves", 0) == steps - 1);
+  CHECK(a["worst_relative_residual"].get<double>() <= 1e-12);
+  CHECK(b["lu_fallbacks"] == steps - 1);
+  // The chain swings down: a motion well away from its starting line.
+  CHECK(it.state().x(1, 11) < -0.1);
+  for (Eigen::Index i = 0; i < it.state().x.cols(); ++i)
+    for (int d = 0; d < 2; ++d) {
+      INFO("particle " << i << ", component " << d);
+      CHECK(lu.state().x(d, i) == Approx(it.state().x(d, i)).epsilon(1e-9).margin(1e-12));
+      CHECK(lu.state().v(d, i) == Approx(it.state().v(d, i)).epsilon(1e-9).margin(1e-10));
     }
 }
