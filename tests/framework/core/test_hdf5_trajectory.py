@@ -122,8 +122,8 @@ for kind, args in (("render svg", ["render", "{dir}", "--out", "{out}.svg"]),
         check(r.returncode == 0, f"{kind} {label}: exit {r.returncode}: {r.stderr}")
         ext = args[-1].rsplit(".", 1)[1]
         page = open(f"{stem}.{ext}", "rb").read() if r.returncode == 0 else b""
-        # The replay page embeds summary.json: all equal but the runs' wall times.
-        outs.append(re.sub(rb'"wall_time_s":[0-9.e+-]+', b"", page))
+        # The replay page embeds summary.json: all equal but the runs' wall and CPU times.
+        outs.append(re.sub(rb'"(wall|cpu)_time_s":[0-9.e+-]+', b"", page))
     check(outs[0] == outs[1] and len(outs[0]) > 1000,
           f"{kind}: the CSV and HDF5 run folders give different output")
 
