@@ -76,6 +76,7 @@ class WireReader {
   std::string str(uint32_t max = kMaxWireString);
   void raw(void* out, std::size_t n) {
     need(n);
+    if (n == 0) return;  // an empty vector's data() may be null: memcpy's pointers must not be
     std::memcpy(out, p_, n);
     p_ += n;
   }
