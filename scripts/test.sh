@@ -1,12 +1,12 @@
 #!/usr/bin/env bash
-# README command 2: set up, build, and run every test, three ways (docs/fuzzing.md):
-#   1. the release build: ctest, then the out-of-tree SDK check;
-#   2. the same ctest suite under AddressSanitizer + UBSan (the asan preset), zero reports;
-#   web. the WebAssembly engine of `pinsim share` (the web preset, Emscripten), then its tests
-#      (node: bit-identical to native; headless Chromium and Firefox: the page plays);
-#   3. a bounded libFuzzer run of the parsers (the fuzz preset, clang; 30 s per target).
-# Each stage prints its time. The default is "release fuzz"; the asan stage is opt-in
-# (PINSIM_TEST_STAGES="release asan fuzz") until the whole suite has run clean under it.
+# README command 2: set up, build, and run every test, in stages (README, docs/fuzzing.md):
+#   release  the release build: ctest, then the out-of-tree SDK check;
+#   web      the WebAssembly engine of `pinsim share` (the web preset, Emscripten), then its
+#            tests (node: bit-identical to native; headless Chromium and Firefox: the page);
+#   asan     the same ctest suite under AddressSanitizer + UBSan (the asan preset), zero
+#            reports; opt-in until the whole suite runs clean under it (README);
+#   fuzz     a bounded libFuzzer run of the parsers (the fuzz preset, clang; 30 s per target).
+# Each stage prints its time. PINSIM_TEST_STAGES picks them (default "release web fuzz").
 # The stages run one after another, so the release and asan suites' Slurm tests never meet
 # (each starts and stops its own cluster, in its own folder, on free ports).
 set -euo pipefail
