@@ -127,15 +127,24 @@ for kind, args in (("render svg", ["render", "{dir}", "--out", "{out}.svg"]),
     check(outs[0] == outs[1] and len(outs[0]) > 1000,
           f"{kind}: the CSV and HDF5 run folders give different output")
 
-# 2. kill -9 mid-run (a long run, every step written), at three moments.
+# 2. kill -9 mid-run (a long run, every step written), at three moments. The moments are set
+# by the file's size (12 particles x 4 doubles + t: ~400 bytes a frame), not by wall time, so a
+# loaded machine that starts the run late still kills it mid-write: at ~15,000, ~40,000 and
+# ~60,000 frames, then 1-3 ms more so the kill lands at different points within a frame.
 long_scene = dict(SCENE, time={"dt": 0.0001, "duration": 1000.0},
                   output={"every": 1, "format": "hdf5"})
 long_path = write_scene("long.json", long_scene)
-for k, delay in enumerate((0.7, 1.3, 2.1)):
+for k, size in enumerate((6_000_000, 16_000_000, 24_000_000)):
     out = os.path.join(WORK, f"killed{k}")
+    f5 = os.path.join(out, "trajectory.h5")
     p = subprocess.Popen([PINSIM, "-q", "run", long_path, "--out", out],
                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    time.sleep(delay)
+    deadline = time.monotonic() + 120.0
+    while time.monotonic() < deadline and p.poll() is None:
+        if os.path.exists(f5) and os.path.getsize(f5) >= size:
+            break
+        time.sleep(0.01)
+    time.sleep(0.001 * (k + 1))
     p.send_signal(signal.SIGKILL)
     p.wait()
     f5 = os.path.join(out, "trajectory.h5")
@@ -149,7 +158,7 @@ for k, delay in enumerate((0.7, 1.3, 2.1)):
     except OSError as e:
         check(False, f"kill {k}: h5py cannot open the file: {e}")
         continue
-    print(f"kill {k} after {delay} s: frames_complete {n}, dataset frames {shapes}")
+    print(f"kill {k} at {size} bytes: frames_complete {n}, dataset frames {shapes}")
     check(n > 10 and all(s >= n for s in shapes), f"kill {k}: frames {n} / {shapes}")
     # The same scene as CSV, stopped after frame n - 1 (t = (n - 1) dt).
     ref = os.path.join(WORK, f"killed{k}_csv")
