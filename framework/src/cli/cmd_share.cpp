@@ -90,10 +90,7 @@ int share_command(const ShareArgs& a) {
   const CairoSurface bg = image_surface(map.width, map.height);
   {
     const CairoContext cr = cairo_context(bg.get());
-    auto be = make_backend(scene, loader, static_obstacles(scene.backend_scene));
-    const FieldGrid g =
-        sample_field([&](double x, double y) { return be->distance(x, y, 0.0, nullptr); }, map, 1);
-    draw_field(cr.get(), map, g, contour_spacing(map.view));
+    draw_static_table(cr.get(), scene, loader, map);
   }
   SharePage page;
   page.title = scene.name;

@@ -9,8 +9,8 @@ namespace fs = std::filesystem;
 
 namespace pinsim {
 
-const char* const kRunFolderFiles[8] = {"trajectory.csv", "events.csv",  "contacts.csv",
-                                        "summary.json",   "scene.json",  "picture.png",
+const char* const kRunFolderFiles[8] = {"trajectory.csv", "events.csv",   "contacts.csv",
+                                        "summary.json",   "scene.json",   "picture.png",
                                         "replay.html",    "trajectory.h5"};
 
 namespace {

@@ -266,4 +266,11 @@ std::string base64(const std::string& bytes) {
   return out;
 }
 
+void draw_static_table(cairo_t* cr, const Scene& scene, PluginLoader& loader, const PixelMap& map) {
+  auto be = make_backend(scene, loader, static_obstacles(scene.backend_scene));
+  const FieldGrid g =
+      sample_field([&](double x, double y) { return be->distance(x, y, 0.0, nullptr); }, map, 1);
+  draw_field(cr, map, g, contour_spacing(map.view));
+}
+
 }  // namespace pinsim

@@ -55,6 +55,10 @@ void draw_solid(cairo_t* cr, const FieldGrid& g, double r, double gr, double b);
 std::unique_ptr<BackendInstance> make_backend(const Scene& scene, PluginLoader& loader,
                                               const nlohmann::json& backend_scene);
 
+/// Draws the scene's static obstacles as a field (draw_field, spacing contour_spacing): the
+/// table under the moving parts, as `play` and `share` show it.
+void draw_static_table(cairo_t* cr, const Scene& scene, PluginLoader& loader, const PixelMap& map);
+
 /// The scene's backend description without moving obstacles (and without inputs).
 nlohmann::json static_obstacles(const nlohmann::json& backend_scene);
 /// Only the moving obstacles, with the inputs; null if the scene has none.
