@@ -1,7 +1,12 @@
 #include "core/trajectory_hdf5.hpp"
 
 #include <algorithm>
+#include <condition_variable>
+#include <cstring>
+#include <deque>
+#include <mutex>
 #include <stdexcept>
+#include <thread>
 
 #include "core/output_file.hpp"
 
@@ -77,6 +82,27 @@ void write_scalar_attr(hid_t obj, const char* name, hid_t type, T value) {
     throw std::runtime_error(std::string("cannot write attribute ") + name);
 }
 
+/// The system's reason for the innermost failure on this thread's HDF5 error stack (the
+/// file driver records it as "... error message = 'File too large' ..."), or "".
+std::string hdf5_system_error() {
+  std::string reason;
+  H5Ewalk2(
+      H5E_DEFAULT, H5E_WALK_UPWARD,
+      [](unsigned, const H5E_error2_t* e, void* data) -> herr_t {
+        auto& out = *static_cast<std::string*>(data);
+        const char* key = "error message = '";
+        const char* at = e->desc ? std::strstr(e->desc, key) : nullptr;
+        if (out.empty() && at) {
+          at += std::strlen(key);
+          const char* end = std::strchr(at, '\'');
+          out.assign(at, end ? static_cast<std::size_t>(end - at) : std::strlen(at));
+        }
+        return 0;
+      },
+      &reason);
+  return reason;
+}
+
 }  // namespace
 
 struct Hdf5TrajectoryWriter::Handles {
@@ -85,8 +111,22 @@ struct Hdf5TrajectoryWriter::Handles {
   bool failed = false;
 };
 
+/// Two frame buffers between the step thread and the writer thread.
+struct Hdf5TrajectoryWriter::Queue {
+  static constexpr int kBuffers = 2;
+  std::mutex m;
+  std::condition_variable cv;
+  std::vector<std::unique_ptr<Frame>> free;  ///< to fill
+  std::deque<std::unique_ptr<Frame>> ready;  ///< to write, oldest first
+  bool stop = false;
+  std::string error;  ///< the writer's first failure; it then writes nothing more
+  bool error_reported = false;
+  std::thread thread;
+};
+
 Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t particles,
-                                           const std::string& scene_name, double dt)
+                                           const std::string& scene_name, double dt,
+                                           bool background)
     : h_(std::make_unique<Handles>()), file_(file), particles_(particles) {
   auto fail = [&](const std::string& what) {
     h_.reset();
@@ -115,7 +155,9 @@ Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t par
   const hsize_t dims[2] = {0, n}, maxdims[2] = {H5S_UNLIMITED, n > 0 ? n : H5S_UNLIMITED},
                 chunk[2] = {rows, std::max<hsize_t>(n, 1)};
   Hid space(H5Screate_simple(2, dims, maxdims), H5Sclose);
-  if (H5Pset_chunk(dcpl, 2, chunk) < 0) fail("chunk layout");
+  // No creation/modification times in the object headers: the same run, the same bytes.
+  if (H5Pset_chunk(dcpl, 2, chunk) < 0 || H5Pset_obj_track_times(dcpl, false) < 0)
+    fail("chunk layout");
   for (int c = 0; c < 4; ++c) {
     h_->cols[c] = Hid(
         H5Dcreate2(h_->file, kColumns[c], H5T_IEEE_F64LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
@@ -125,7 +167,8 @@ Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t par
   const hsize_t tdims[1] = {0}, tmax[1] = {H5S_UNLIMITED}, tchunk[1] = {1024};
   Hid tspace(H5Screate_simple(1, tdims, tmax), H5Sclose);
   Hid tdcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-  if (H5Pset_chunk(tdcpl, 1, tchunk) < 0) fail("chunk layout");
+  if (H5Pset_chunk(tdcpl, 1, tchunk) < 0 || H5Pset_obj_track_times(tdcpl, false) < 0)
+    fail("chunk layout");
   h_->t = Hid(H5Dcreate2(h_->file, "t", H5T_IEEE_F64LE, tspace, H5P_DEFAULT, tdcpl, H5P_DEFAULT),
               H5Dclose);
   if (h_->t < 0) fail("dataset /t");
@@ -145,27 +188,115 @@ Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t par
   h_->frames_attr = Hid(H5Aopen(h_->file, "frames_complete", H5P_DEFAULT), H5Aclose);
   if (h_->frames_attr < 0 || H5Fflush(h_->file, H5F_SCOPE_LOCAL) < 0) fail("H5Fflush failed");
   buf_.resize(particles_);
+  auto frame = [&] {
+    auto f = std::make_unique<Frame>();
+    f->xv.resize(4 * particles_);
+    return f;
+  };
+  if (!background) {
+    sync_frame_ = frame();
+    return;
+  }
+  q_ = std::make_unique<Queue>();
+  for (int i = 0; i < Queue::kBuffers; ++i) q_->free.push_back(frame());
+  q_->thread = std::thread([this] { writer_loop(); });
 }
 
-Hdf5TrajectoryWriter::~Hdf5TrajectoryWriter() = default;
+Hdf5TrajectoryWriter::~Hdf5TrajectoryWriter() { stop_writer(); }
+
+void Hdf5TrajectoryWriter::fill(Frame& f, const State& s) const {
+  f.t = s.t;
+  const std::size_t n2 = 2 * particles_;
+  if (n2 == 0) return;
+  std::memcpy(f.xv.data(), s.x.data(), n2 * sizeof(double));
+  std::memcpy(f.xv.data() + n2, s.v.data(), n2 * sizeof(double));
+}
 
 void Hdf5TrajectoryWriter::write(const State& s) {
-  if (!h_ || h_->failed)
+  // (h_->failed belongs to the writer thread in the background: its failure is q_->error.)
+  if (!h_ || (!q_ && h_->failed))
     throw OutputError(file_.string() + ": cannot write (an earlier write failed)");
   if (s.size() != particles_)
     throw OutputError(file_.string() + ": the particle count changed during the run");
+  if (!q_) {
+    fill(*sync_frame_, s);
+    write_frame(*sync_frame_);
+    ++frames_;
+    return;
+  }
+  // A free buffer (waiting while the writer holds both), filled outside the lock.
+  std::unique_ptr<Frame> f;
+  {
+    std::unique_lock lock(q_->m);
+    q_->cv.wait(lock, [&] { return !q_->free.empty() || !q_->error.empty(); });
+    if (!q_->error.empty()) {
+      q_->error_reported = true;
+      throw OutputError(q_->error);
+    }
+    f = std::move(q_->free.back());
+    q_->free.pop_back();
+  }
+  fill(*f, s);
+  {
+    std::lock_guard lock(q_->m);
+    q_->ready.push_back(std::move(f));
+  }
+  q_->cv.notify_all();
+  ++frames_;
+}
+
+void Hdf5TrajectoryWriter::writer_loop() {
+  QuietHdf5 quiet;  // per thread in a thread-safe HDF5
+  for (;;) {
+    std::unique_ptr<Frame> f;
+    {
+      std::unique_lock lock(q_->m);
+      q_->cv.wait(lock, [&] { return !q_->ready.empty() || q_->stop; });
+      if (q_->ready.empty()) return;  // stopped, and every frame written
+      f = std::move(q_->ready.front());
+      q_->ready.pop_front();
+    }
+    std::string error;
+    if (!h_->failed) {
+      try {
+        write_frame(*f);
+      } catch (const OutputError& e) {
+        error = e.what();
+      }
+    }
+    {
+      std::lock_guard lock(q_->m);
+      if (!error.empty() && q_->error.empty()) q_->error = error;
+      q_->free.push_back(std::move(f));
+    }
+    q_->cv.notify_all();
+  }
+}
+
+void Hdf5TrajectoryWriter::stop_writer() {
+  if (!q_ || !q_->thread.joinable()) return;
+  {
+    std::lock_guard lock(q_->m);
+    q_->stop = true;
+  }
+  q_->cv.notify_all();
+  q_->thread.join();
+}
+
+void Hdf5TrajectoryWriter::write_frame(const Frame& fr) {
   auto fail = [&](const char* what) {
     h_->failed = true;
-    throw OutputError(file_.string() + ": cannot write frame " + std::to_string(frames_) + " (" +
-                      what + ")");
+    const std::string reason = hdf5_system_error();
+    throw OutputError(file_.string() + ": cannot write frame " + std::to_string(written_) + " (" +
+                      what + (reason.empty() ? "" : ": " + reason) + ")");
   };
-  const hsize_t f = frames_, n = particles_;
+  const hsize_t f = written_, n = particles_;
   // 1. the columns, 2. /t, 3. frames_complete, 4. flush: a reader of the flushed file
   // trusts the first frames_complete frames (and never more than each dataset holds).
   const hsize_t dims[2] = {f + 1, n}, start[2] = {f, 0}, count[2] = {1, n};
   Hid mem(H5Screate_simple(1, &count[1], nullptr), H5Sclose);
   for (int c = 0; c < 4; ++c) {
-    const double* src = (c < 2 ? s.x.data() : s.v.data()) + (c & 1);
+    const double* src = fr.xv.data() + (c < 2 ? 0 : 2 * particles_) + (c & 1);
     for (std::size_t i = 0; i < particles_; ++i) buf_[i] = src[2 * i];
     if (H5Dset_extent(h_->cols[c], dims) < 0) fail("H5Dset_extent");
     if (n == 0) continue;
@@ -181,16 +312,20 @@ void Hdf5TrajectoryWriter::write(const State& s) {
   Hid tmem(H5Screate_simple(1, one, nullptr), H5Sclose);
   if (tspace < 0 ||
       H5Sselect_hyperslab(tspace, H5S_SELECT_SET, &start[0], nullptr, one, nullptr) < 0 ||
-      H5Dwrite(h_->t, H5T_NATIVE_DOUBLE, tmem, tspace, H5P_DEFAULT, &s.t) < 0)
+      H5Dwrite(h_->t, H5T_NATIVE_DOUBLE, tmem, tspace, H5P_DEFAULT, &fr.t) < 0)
     fail("H5Dwrite");
   const uint64_t complete = f + 1;
   if (H5Awrite(h_->frames_attr, H5T_NATIVE_UINT64, &complete) < 0) fail("frames_complete");
   if (H5Fflush(h_->file, H5F_SCOPE_LOCAL) < 0) fail("H5Fflush");
-  ++frames_;
+  ++written_;
 }
 
 void Hdf5TrajectoryWriter::close() {
   if (!h_) return;
+  stop_writer();
+  std::string queued_error;
+  if (q_ && !q_->error.empty() && !q_->error_reported) queued_error = q_->error;
+  q_.reset();
   const bool failed = h_->failed;
   h_->frames_attr.reset();
   h_->t.reset();
@@ -198,6 +333,7 @@ void Hdf5TrajectoryWriter::close() {
   const herr_t r = h_->file >= 0 ? H5Fclose(h_->file) : 0;
   h_->file.id = -1;
   h_.reset();
+  if (!queued_error.empty()) throw OutputError(queued_error);
   if (r < 0 && !failed) throw OutputError(file_.string() + ": cannot close (H5Fclose failed)");
 }
 
@@ -262,9 +398,10 @@ Hdf5Trajectory read_hdf5_trajectory(const fs::path& file) {
 bool hdf5_supported() { return false; }
 
 struct Hdf5TrajectoryWriter::Handles {};
+struct Hdf5TrajectoryWriter::Queue {};
 
 Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t particles,
-                                           const std::string&, double)
+                                           const std::string&, double, bool)
     : file_(file), particles_(particles) {
   throw OutputError(file.string() + ": this pinsim was built without HDF5 (PINSIM_WITH_HDF5=OFF)");
 }
