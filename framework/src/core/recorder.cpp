@@ -61,7 +61,7 @@ void append_int(std::string& out, long long v) {
 
 }  // namespace
 
-Recorder::Recorder(const fs::path& dir, const Scene& scene, bool overwrite)
+Recorder::Recorder(const fs::path& dir, const Scene& scene, bool overwrite, bool hdf5_background)
     : dir_(dir), scene_(scene), mode_(scene.output_events) {
   std::error_code ec;
   if (fs::exists(dir_, ec) && !fs::is_directory(dir_, ec))
@@ -87,8 +87,9 @@ Recorder::Recorder(const fs::path& dir, const Scene& scene, bool overwrite)
   if (text.size() > 4 * compact.size() + 4096) text = compact;
   write_file_atomically(dir_ / "scene.json", text + "\n");
   if (scene.output_format == "hdf5")
-    traj_h5_ = std::make_unique<Hdf5TrajectoryWriter>(
-        dir_ / "trajectory.h5", scene.initial_state().size(), scene.name, scene.dt);
+    traj_h5_ =
+        std::make_unique<Hdf5TrajectoryWriter>(dir_ / "trajectory.h5", scene.initial_state().size(),
+                                               scene.name, scene.dt, hdf5_background);
   else
     traj_ = std::make_unique<LineFile>(dir_ / "trajectory.csv", "t,particle,x,y,vx,vy\n");
   events_ = std::make_unique<LineFile>(

@@ -29,13 +29,17 @@ class Recorder {
   /// files unless `overwrite`; with it, first removes the files of kRunFolderFiles (so no
   /// picture or page of the earlier run stays beside the new files). Throws
   /// std::runtime_error naming the folder, or OutputError naming a file.
-  Recorder(const std::filesystem::path& dir, const Scene& scene, bool overwrite);
+  /// `hdf5_background`: trajectory.h5 frames are written on a writer thread (the same bytes
+  /// either way; false for benchmarks comparing the two).
+  Recorder(const std::filesystem::path& dir, const Scene& scene, bool overwrite,
+           bool hdf5_background = true);
   Recorder(const Recorder&) = delete;
   Recorder& operator=(const Recorder&) = delete;
 
   /// One row per particle: t,particle,x,y,vx,vy. Whole lines only; throws OutputError (the
   /// file then ends with its last whole line). With output.format "hdf5", one frame of
-  /// trajectory.h5 instead (Hdf5TrajectoryWriter).
+  /// trajectory.h5 instead (Hdf5TrajectoryWriter: a copy handed to its writer thread; its
+  /// failure is thrown by a later write_state or by close()).
   void write_state(const State& s);
   /// The impulses of step `step`; call it for every step, with or without impulses. By the
   /// scene's output.events: "all" writes one events.csv row per impulse; "impacts" one per
@@ -44,9 +48,9 @@ class Recorder {
   void write_events(const std::vector<pinsim_event>& events, uint64_t step);
   /// Writes summary.json atomically (temporary file, then rename). Throws OutputError.
   void write_summary(const nlohmann::json& summary);
-  /// Writes the touches still open (marked open, their end the last impulse's time) and
-  /// closes trajectory.csv, events.csv and contacts.csv, checking the closes. Throws
-  /// OutputError.
+  /// Writes the touches still open (marked open, their end the last impulse's time), writes
+  /// the trajectory.h5 frames still queued and closes trajectory.csv or .h5, events.csv and
+  /// contacts.csv, checking the closes. Throws OutputError.
   void close();
 
   const std::filesystem::path& dir() const { return dir_; }
