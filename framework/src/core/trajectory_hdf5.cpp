@@ -1,6 +1,11 @@
 #include "core/trajectory_hdf5.hpp"
 
+#include <fcntl.h>
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <algorithm>
+#include <cerrno>
 #include <condition_variable>
 #include <cstring>
 #include <deque>
@@ -103,12 +108,40 @@ std::string hdf5_system_error() {
   return reason;
 }
 
+/// Tells HDF5, once and before its first call, not to close the files left open at exit:
+/// HDF5 1.10 crashes there (H5F__close_cb) on a file whose close failed, and a file whose
+/// writing failed is left open on purpose (Handles).
+void hdf5_no_atexit() {
+  static std::once_flag once;
+  std::call_once(once, [] { H5dont_atexit(); });
+}
+
+struct Hdf5NoAtexit {
+  Hdf5NoAtexit() { hdf5_no_atexit(); }
+};
+
 }  // namespace
 
 struct Hdf5TrajectoryWriter::Handles {
+  Hdf5NoAtexit no_atexit;
   QuietHdf5 quiet;
   Hid file, t, cols[4], frames_attr;
   bool failed = false;
+  int fd = -1;              ///< the file's descriptor (sec2 driver), for the reservation
+  hsize_t frame_bound = 0;  ///< most bytes one frame can add to the file
+  hsize_t reserved = 0;     ///< disk blocks allocated up to here
+  rlim_t fsize_limit = RLIM_INFINITY;
+  /// After a failed write the handles are dropped, not closed: closing flushes metadata
+  /// again (a B-tree node, the frames_complete of the failed frame) into a file that can
+  /// no longer take it; left alone, the file is the one of the last successful H5Fflush.
+  ~Handles() {
+    if (!failed) return;
+    file.id = t.id = frames_attr.id = -1;
+    for (Hid& c : cols) c.id = -1;
+  }
+  Handles() = default;
+  Handles(const Handles&) = delete;
+  Handles& operator=(const Handles&) = delete;
 };
 
 /// Two frame buffers between the step thread and the writer thread.
@@ -158,10 +191,15 @@ Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t par
   // No creation/modification times in the object headers: the same run, the same bytes.
   if (H5Pset_chunk(dcpl, 2, chunk) < 0 || H5Pset_obj_track_times(dcpl, false) < 0)
     fail("chunk layout");
+  // A frame that fills whole chunks (rows == 1) goes straight to the file: no chunk cache,
+  // so no copy into it and no second pass at H5Fflush.
+  Hid dapl(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose);
+  if (rows == 1 && H5Pset_chunk_cache(dapl, 0, 0, H5D_CHUNK_CACHE_W0_DEFAULT) < 0)
+    fail("chunk cache");
   for (int c = 0; c < 4; ++c) {
-    h_->cols[c] = Hid(
-        H5Dcreate2(h_->file, kColumns[c], H5T_IEEE_F64LE, space, H5P_DEFAULT, dcpl, H5P_DEFAULT),
-        H5Dclose);
+    h_->cols[c] =
+        Hid(H5Dcreate2(h_->file, kColumns[c], H5T_IEEE_F64LE, space, H5P_DEFAULT, dcpl, dapl),
+            H5Dclose);
     if (h_->cols[c] < 0) fail(std::string("dataset /") + kColumns[c]);
   }
   const hsize_t tdims[1] = {0}, tmax[1] = {H5S_UNLIMITED}, tchunk[1] = {1024};
@@ -188,6 +226,13 @@ Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t par
   h_->frames_attr = Hid(H5Aopen(h_->file, "frames_complete", H5P_DEFAULT), H5Aclose);
   if (h_->frames_attr < 0 || H5Fflush(h_->file, H5F_SCOPE_LOCAL) < 0) fail("H5Fflush failed");
   buf_.resize(particles_);
+  // A frame adds at most: a new chunk of each column, a new /t chunk, B-tree nodes and
+  // object header room (generously 256 KB).
+  h_->frame_bound = 4 * chunk[0] * chunk[1] * sizeof(double) + tchunk[0] * sizeof(double) + 262144;
+  void* fd = nullptr;
+  if (H5Fget_vfd_handle(h_->file, H5P_DEFAULT, &fd) >= 0 && fd) h_->fd = *static_cast<int*>(fd);
+  rlimit lim{};
+  if (getrlimit(RLIMIT_FSIZE, &lim) == 0) h_->fsize_limit = lim.rlim_cur;
   auto frame = [&] {
     auto f = std::make_unique<Frame>();
     f->xv.resize(4 * particles_);
@@ -284,12 +329,39 @@ void Hdf5TrajectoryWriter::stop_writer() {
 }
 
 void Hdf5TrajectoryWriter::write_frame(const Frame& fr) {
-  auto fail = [&](const char* what) {
+  auto fail = [&](const std::string& what) {
     h_->failed = true;
     const std::string reason = hdf5_system_error();
     throw OutputError(file_.string() + ": cannot write frame " + std::to_string(written_) + " (" +
                       what + (reason.empty() ? "" : ": " + reason) + ")");
   };
+  // 0. Room for the frame first. HDF5 goes on flushing metadata after a failed write
+  // (the superblock then names an end of file the file never reached, and no reader opens
+  // it), so a full disk or a file-size limit must stop the frame before its first write:
+  // the file stays the last flushed one. The limit is checked, the disk blocks allocated
+  // (fallocate, the file's size unchanged; where the file system cannot, nothing).
+  {
+    hsize_t end = 0;
+    if (H5Fget_filesize(h_->file, &end) < 0) fail("H5Fget_filesize");
+    const hsize_t need = end + h_->frame_bound;
+    if (h_->fsize_limit != RLIM_INFINITY && need > h_->fsize_limit) fail(std::strerror(EFBIG));
+    if (h_->fd >= 0 && need > h_->reserved) {
+      // In steps of 16 frames (at least 4 MB), or just this frame's room if that fails.
+      const hsize_t ahead = std::max<hsize_t>(16 * h_->frame_bound, 4u << 20);
+      int r = fallocate(h_->fd, FALLOC_FL_KEEP_SIZE, static_cast<off_t>(end),
+                        static_cast<off_t>(ahead));
+      if (r == 0) {
+        h_->reserved = end + ahead;
+      } else if (errno == EOPNOTSUPP || errno == ENOSYS) {
+        h_->fd = -1;  // no reservation on this file system
+      } else {
+        r = fallocate(h_->fd, FALLOC_FL_KEEP_SIZE, static_cast<off_t>(end),
+                      static_cast<off_t>(h_->frame_bound));
+        if (r != 0) fail(std::strerror(errno));
+        h_->reserved = need;
+      }
+    }
+  }
   const hsize_t f = written_, n = particles_;
   // 1. the columns, 2. /t, 3. frames_complete, 4. flush: a reader of the flushed file
   // trusts the first frames_complete frames (and never more than each dataset holds).
@@ -327,17 +399,26 @@ void Hdf5TrajectoryWriter::close() {
   if (q_ && !q_->error.empty() && !q_->error_reported) queued_error = q_->error;
   q_.reset();
   const bool failed = h_->failed;
-  h_->frames_attr.reset();
-  h_->t.reset();
-  for (auto& c : h_->cols) c.reset();
-  const herr_t r = h_->file >= 0 ? H5Fclose(h_->file) : 0;
-  h_->file.id = -1;
+  herr_t r = 0;
+  if (!failed) {
+    h_->frames_attr.reset();
+    h_->t.reset();
+    for (auto& c : h_->cols) c.reset();
+    r = h_->file >= 0 ? H5Fclose(h_->file) : 0;
+    h_->file.id = -1;
+    // Gives back the disk blocks reserved past the end (truncating to the same size).
+    std::error_code ec;
+    const auto size = fs::file_size(file_, ec);
+    if (r >= 0 && !ec && h_->reserved > size)
+      (void)::truncate(file_.c_str(), static_cast<off_t>(size));
+  }
   h_.reset();
   if (!queued_error.empty()) throw OutputError(queued_error);
   if (r < 0 && !failed) throw OutputError(file_.string() + ": cannot close (H5Fclose failed)");
 }
 
 Hdf5Trajectory read_hdf5_trajectory(const fs::path& file) {
+  hdf5_no_atexit();
   QuietHdf5 quiet;
   auto fail = [&](const std::string& what) -> void {
     throw std::runtime_error(file.string() + ": " + what);
