@@ -9,6 +9,14 @@
    frames_complete > 0, and the first frames_complete frames equal a CSV run's values
    (the CSV run stops at the same time); `pinsim render` reads the killed folder.
 3. output.format "xml": exit 2 and a message naming output.format.
+4. The frames are written on a writer thread; the file does not depend on its timing: two
+   runs of the same scene give the same bytes.
+5. SIGINT and SIGTERM: the queued frames are written before summary.json says
+   "interrupted": frames_complete is the summary's steps + 1 (every step's frame and the
+   initial one).
+6. A file-size limit (RLIMIT_FSIZE) and, as root, a full disk (a 1 MiB tmpfs): exit 1, a
+   message naming trajectory.h5 and the reason, summary.json's error of kind "output", and a
+   file that h5py and h5dump open whose first frames_complete frames equal a CSV run's.
 
 Usage: test_hdf5_trajectory.py PINSIM_BIN WORK_DIR
 """
@@ -174,6 +182,88 @@ bad = write_scene("bad.json", dict(SCENE, output={"format": "xml"}))
 r = run("-q", "run", bad, "--out", os.path.join(WORK, "bad"))
 check(r.returncode == 2 and "output.format" in r.stderr and "hdf5" in r.stderr,
       f"bad format: exit {r.returncode}: {r.stderr}")
+
+# 4. The same bytes for the same run.
+again = os.path.join(WORK, "h5", "again")
+r = run("-q", "run", scene, "--out", again, "--set", "output.format=hdf5")
+check(r.returncode == 0, f"second hdf5 run: exit {r.returncode}: {r.stderr}")
+if r.returncode == 0:
+    check(open(h5file, "rb").read() == open(os.path.join(again, "trajectory.h5"), "rb").read(),
+          "two runs of the same scene write different trajectory.h5 bytes")
+
+# 5. SIGINT / SIGTERM: the writer's queue is drained before the summary is written.
+for sig in (signal.SIGINT, signal.SIGTERM):
+    out = os.path.join(WORK, f"stopped_{sig.name}")
+    f5 = os.path.join(out, "trajectory.h5")
+    p = subprocess.Popen([PINSIM, "-q", "run", long_path, "--out", out],
+                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 120.0
+    while time.monotonic() < deadline and p.poll() is None:
+        if os.path.exists(f5) and os.path.getsize(f5) >= 3_000_000:
+            break
+        time.sleep(0.01)
+    p.send_signal(sig)
+    p.wait(timeout=60)
+    s = json.load(open(os.path.join(out, "summary.json")))
+    check(s["status"] == "interrupted", f"{sig.name}: status {s['status']}")
+    with h5py.File(f5, "r") as f:
+        n = int(f.attrs["frames_complete"])
+        last_t = float(f["t"][n - 1]) if n else None
+    print(f"{sig.name}: steps {s['steps']}, frames_complete {n}")
+    check(n == s["steps"] + 1 and n > 1000,
+          f"{sig.name}: frames_complete {n}, summary steps {s['steps']} (expected steps + 1)")
+    check(last_t == s["t_end"], f"{sig.name}: last frame's t {last_t} != t_end {s['t_end']}")
+
+
+def check_failed_run(label, r, out, reason):
+    """A run that could not write: exit 1 naming the file and `reason`, whole frames kept."""
+    f5 = os.path.join(out, "trajectory.h5")
+    check(r.returncode == 1, f"{label}: exit {r.returncode}: {r.stderr[-500:]}")
+    check(f5 + ": cannot write frame" in r.stderr and reason in r.stderr,
+          f"{label}: message: {r.stderr[-500:]}")
+    s = json.load(open(os.path.join(out, "summary.json")))
+    check(s["status"] == "error" and s["error"]["kind"] == "output" and
+          "trajectory.h5" in s["error"]["message"], f"{label}: summary {s.get('error')}")
+    d = subprocess.run(["h5dump", "-A", f5], capture_output=True, text=True)
+    check(d.returncode == 0, f"{label}: h5dump -A: {d.stderr[:300]}")
+    try:
+        with h5py.File(f5, "r") as f:
+            n = int(f.attrs["frames_complete"])
+    except OSError as e:
+        check(False, f"{label}: h5py cannot open the file: {e}")
+        return
+    print(f"{label}: frames_complete {n}, file {os.path.getsize(f5)} bytes")
+    check(n > 100, f"{label}: frames_complete {n}")
+    ref = os.path.join(WORK, f"{label}_csv")
+    r = run("-q", "run", long_path, "--out", ref, "--set", "output.format=csv",
+            "--set", f"time.duration={(n - 1) * 0.0001!r}")
+    check(r.returncode == 0, f"{label}: csv run: {r.stderr}")
+    compare(f5, ref, n)
+
+
+# 6. A file-size limit; a full disk.
+out = os.path.join(WORK, "fsize")
+r = subprocess.run(["prlimit", "--fsize=3000000", PINSIM, "-q", "run", long_path, "--out", out],
+                   capture_output=True, text=True)
+check_failed_run("fsize", r, out, "File too large")
+check(os.path.getsize(os.path.join(out, "trajectory.h5")) <= 3000000, "fsize: file over the limit")
+if os.geteuid() == 0:
+    mnt, copy = os.path.join(WORK, "mnt"), os.path.join(WORK, "full")
+    os.makedirs(mnt)
+    os.makedirs(copy)
+    script = (f"mount -t tmpfs -o size=1m tmpfs {mnt} || exit 99; "
+              f"{PINSIM} -q run {long_path} --out {mnt}/run; echo rc=$? >&2; "
+              f"cp {mnt}/run/* {copy}")
+    r = subprocess.run(["unshare", "--mount", "sh", "-c", script], capture_output=True, text=True)
+    if "rc=" not in r.stderr:
+        print("full disk: cannot mount a tmpfs here, skipped:", r.stderr[-300:])
+    else:
+        r.returncode = int(r.stderr.rsplit("rc=", 1)[1].split()[0])
+        # The message names the file inside the tmpfs; the copy is checked.
+        r.stderr = r.stderr.replace(f"{mnt}/run", copy)
+        check_failed_run("full", r, copy, "No space left on device")
+else:
+    print("full disk: not root, skipped (the file-size limit covers the same path)")
 
 shutil.rmtree(WORK, ignore_errors=True) if not failures else None
 print("FAILED:" if failures else "ok", *failures, sep="\n")
