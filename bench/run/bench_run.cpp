@@ -11,11 +11,18 @@
 // loop's wall time (wall_time_s) and the max RSS of the run with output. Prints CSV, one
 // row per case:
 //   case,particles,steps,sdf_ns,box2d_ns,box2d_steps,run_min_output_ns,run_ns,
-//   run_over_sdf,run_over_min_output,max_rss_mb,events_rows,contacts_rows
-// Usage: bench_run [--quick] [--threads N] [--work DIR] [--pinsim PATH]
+//   run_over_sdf,run_over_min_output,max_rss_mb,events_rows,contacts_rows,run_wall_s,
+//   contacts,events_mb,contacts_mb
+// (run_wall_s: the output run's loop wall time; contacts: impulses over the run, summary's
+// contacts; events_mb, contacts_mb: the sizes of events.csv and contacts.csv.)
+// Cases crowded_drop_10000_events_*: issue 15's crowded drop, 10,000 balls dropped at random
+// into the table, 0.2 s (1000 steps), a trajectory frame every 100 steps, with output.events
+// impacts, all and none.
+// Usage: bench_run [--quick] [--threads N] [--work DIR] [--pinsim PATH] [--only TEXT]
 //   --quick    small cases, a smoke test (ctest): checks it runs, no timing assertions
 //   --threads  passed to `pinsim run --threads N` when pinsim has that flag (else a note)
 //   --work     folder for scenes and run output (default: a new folder under /tmp, removed)
+//   --only     only the cases whose name contains TEXT
 #include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -71,6 +78,8 @@ struct RunFigures {
   double cpu_s = NAN;  ///< CPU time of the step loop (summary.json's cpu_time_s)
   double particles = 0.0;
   uint64_t events_rows = 0, contacts_rows = 0;
+  uint64_t contacts = 0;  ///< impulses over the run (summary.json's contacts)
+  double events_mb = 0.0, contacts_mb = 0.0;
   bool ok = false;
 };
 
@@ -149,6 +158,14 @@ RunFigures run_pinsim(const Options& o, const Case& c, int steps, Output mode) {
     f.events_rows = s["events"].value("events_rows", uint64_t{0});
     f.contacts_rows = s["events"].value("contacts_rows", uint64_t{0});
   }
+  f.contacts = s.value("contacts", uint64_t{0});
+  auto mb = [&](const char* name) {
+    std::error_code ec;
+    const auto n = fs::file_size(out / name, ec);
+    return ec ? 0.0 : static_cast<double>(n) / 1e6;
+  };
+  f.events_mb = mb("events.csv");
+  f.contacts_mb = mb("contacts.csv");
   f.ok = true;
   return f;
 }
@@ -297,6 +314,12 @@ std::vector<Case> make_cases(const Options& o, const json& pinball) {
   ball_case("drop_100_settled", 100, 15000, false);
   ball_case("drop_10000_settled", 10000, 15000, false);
   ball_case("drop_10000_ball_contacts", 10000, 5000, true);
+  // Issue 15's crowded drop: 10,000 balls dropped at random, 0.2 s, a frame every 100 steps.
+  for (const char* mode : {"impacts", "all", "none"}) {
+    ball_case(std::string("crowded_drop_10000_events_") + mode, 10000, 1000, false);
+    cases.back().scene["output"]["every"] = 100;
+    cases.back().scene["output"]["events"] = mode;
+  }
   for (const char* integ :
        {"explicit_euler", "symplectic_euler", "velocity_verlet", "rk4", "implicit_euler"})
     cases.push_back(scene_case(std::string("cloth_100x100_") + integ,
@@ -314,6 +337,7 @@ std::vector<Case> make_cases(const Options& o, const json& pinball) {
 int main(int argc, char** argv) {
   Options o;
   bool keep = false;
+  std::string only;
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--quick") {
@@ -325,9 +349,12 @@ int main(int argc, char** argv) {
       keep = true;
     } else if (a == "--pinsim" && i + 1 < argc) {
       o.pinsim = argv[++i];
+    } else if (a == "--only" && i + 1 < argc) {
+      only = argv[++i];
     } else {
       std::fprintf(stderr,
-                   "usage: bench_run [--quick] [--threads N] [--work DIR] [--pinsim PATH]\n");
+                   "usage: bench_run [--quick] [--threads N] [--work DIR] [--pinsim PATH] [--only "
+                   "TEXT]\n");
       return 2;
     }
   }
@@ -349,14 +376,16 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench_run: note: `pinsim run` has no --threads yet; ignored\n");
 
   const json pinball = read_json_file(fs::path(PINSIM_CONFIG_DIR) / "pinball.json");
-  const std::vector<Case> cases = make_cases(o, pinball);
+  std::vector<Case> cases = make_cases(o, pinball);
+  std::erase_if(cases, [&](const Case& c) { return c.name.find(only) == std::string::npos; });
   const double gx = pinball["forces"][0]["params"]["g"][0],
                gy = pinball["forces"][0]["params"]["g"][1];
   json box2d_params = pinball["crosscheck"]["params"]["box2d"];
 
   std::printf(
       "case,particles,steps,sdf_ns,box2d_ns,box2d_steps,run_min_output_ns,run_ns,run_over_sdf,"
-      "run_over_min_output,run_wall_ns,max_rss_mb,events_rows,contacts_rows\n");
+      "run_over_min_output,run_wall_ns,max_rss_mb,events_rows,contacts_rows,run_wall_s,contacts,"
+      "events_mb,contacts_mb\n");
   int failures = 0;
   for (const Case& c : cases) {
     {
@@ -384,11 +413,13 @@ int main(int argc, char** argv) {
     const double per = 1e9 / (static_cast<double>(steps) * particles);
     // CPU time, as the backend-only figures (the machine may be shared).
     const double run_ns = out.cpu_s * per, bare_ns = bare.cpu_s * per, wall_ns = out.loop_s * per;
-    std::printf("%s,%.0f,%d,%.2f,%.2f,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%llu,%llu\n", c.name.c_str(),
-                particles, steps, sdf, box2d, c.balls ? c.box2d_steps : 0, bare_ns, run_ns,
-                run_ns / sdf, run_ns / bare_ns, wall_ns, out.max_rss_mb,
-                static_cast<unsigned long long>(out.events_rows),
-                static_cast<unsigned long long>(out.contacts_rows));
+    std::printf(
+        "%s,%.0f,%d,%.2f,%.2f,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%llu,%llu,%.2f,%llu,%.1f,%.1f\n",
+        c.name.c_str(), particles, steps, sdf, box2d, c.balls ? c.box2d_steps : 0, bare_ns, run_ns,
+        run_ns / sdf, run_ns / bare_ns, wall_ns, out.max_rss_mb,
+        static_cast<unsigned long long>(out.events_rows),
+        static_cast<unsigned long long>(out.contacts_rows), out.loop_s,
+        static_cast<unsigned long long>(out.contacts), out.events_mb, out.contacts_mb);
     std::fflush(stdout);
     // Sane figures: every measured one finite and positive (no timing limits).
     for (double v : {run_ns, bare_ns, wall_ns, c.balls ? sdf : 1.0, out.max_rss_mb})
