@@ -11,6 +11,7 @@
 #include <deque>
 #include <mutex>
 #include <stdexcept>
+#include <system_error>
 #include <thread>
 
 #include "core/output_file.hpp"
@@ -238,13 +239,17 @@ Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t par
     f->xv.resize(4 * particles_);
     return f;
   };
-  if (!background) {
-    sync_frame_ = frame();
-    return;
+  if (background) {
+    q_ = std::make_unique<Queue>();
+    for (int i = 0; i < Queue::kBuffers; ++i) q_->free.push_back(frame());
+    try {
+      q_->thread = std::thread([this] { writer_loop(); });
+      return;
+    } catch (const std::system_error&) {
+      q_.reset();  // no thread to be had (a process limit): write in the step's thread
+    }
   }
-  q_ = std::make_unique<Queue>();
-  for (int i = 0; i < Queue::kBuffers; ++i) q_->free.push_back(frame());
-  q_->thread = std::thread([this] { writer_loop(); });
+  sync_frame_ = frame();
 }
 
 Hdf5TrajectoryWriter::~Hdf5TrajectoryWriter() { stop_writer(); }
@@ -305,7 +310,8 @@ void Hdf5TrajectoryWriter::writer_loop() {
     if (!h_->failed) {
       try {
         write_frame(*f);
-      } catch (const OutputError& e) {
+      } catch (const std::exception& e) {  // OutputError, or no memory for its message
+        h_->failed = true;                 // no frame after a missing one
         error = e.what();
       }
     }

@@ -27,8 +27,9 @@ bool hdf5_supported();
 class Hdf5TrajectoryWriter {
  public:
   /// Creates (truncates) `file` for `particles` particles; `scene_name` and `dt` become
-  /// root attributes. `background`: write on a writer thread (see the file comment); false
-  /// writes each frame inside write() (the same bytes; for benchmarks and tests).
+  /// root attributes. `background`: write on a writer thread (see the file comment; inside
+  /// write() if no thread can be started); false writes each frame inside write() (the same
+  /// bytes; for benchmarks and tests).
   Hdf5TrajectoryWriter(const std::filesystem::path& file, std::size_t particles,
                        const std::string& scene_name, double dt, bool background = true);
   /// Writes the frames still queued and closes the file (errors are dropped: call close()).
