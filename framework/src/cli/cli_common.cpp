@@ -6,6 +6,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/bounded_read.hpp"
 #include "core/input_error.hpp"
 #include "core/json_read.hpp"
 
@@ -24,9 +25,7 @@ std::vector<std::string> with_backend(const std::string& file, const std::string
   if (!file.empty()) {
     std::ifstream in(file);
     if (!in) return overrides;  // load_scene names the problem
-    std::stringstream ss;
-    ss << in.rdbuf();
-    text = ss.str();
+    text = read_json_text(in, file);
     label = file;
   }
   const nlohmann::json doc = parse_json_text(text, label);

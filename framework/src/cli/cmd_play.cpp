@@ -15,6 +15,8 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "core/bounded_read.hpp"
+#include "core/format.hpp"
 #include "core/input_error.hpp"
 #include "core/json_read.hpp"
 #include "core/output_file.hpp"
@@ -29,6 +31,9 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 constexpr double kFps = 60.0;
+/// The most game time a recording may rerun, s: a day of play (4.3e8 steps of the table's
+/// 0.2 ms, about 2.5 h to rerun here); an edited "steps" of 1e18 would otherwise run for ever.
+constexpr double kMaxRerunSeconds = 86400.0;
 
 // Owning SDL handles (the destroy functions of SDL2), and SDL_Init / SDL_Quit as a scope.
 using SdlWindow = std::unique_ptr<SDL_Window, CDeleter<SDL_Window, SDL_DestroyWindow>>;
@@ -66,9 +71,7 @@ struct Scripted {
 json read_json_file(const std::string& flag, const std::string& file, const std::string& expected) {
   std::ifstream in(file);
   if (!in) throw InputError(flag + " " + file + ": cannot be read (expected " + expected + ")");
-  std::stringstream text;
-  text << in.rdbuf();
-  return parse_json_text(text.str(), file);
+  return parse_json_text(read_json_text(in, flag + " " + file), file);
 }
 
 /// "press" or "release" at `at`; InputError otherwise.
@@ -250,6 +253,12 @@ int rerun_recording(const PlayArgs& a) {
   check_recording(rec, a.rerun, !a.scene.empty());
   const std::string scene_file = a.scene.empty() ? rec.value("scene", "") : a.scene;
   Scene scene = load_scene_or_default(scene_file, {});
+  const double seconds = static_cast<double>(rec.at("steps").get<uint64_t>()) * scene.dt;
+  if (!(seconds <= kMaxRerunSeconds))
+    (Loc{a.rerun, ""} / "steps")
+        .fail(std::to_string(rec.at("steps").get<uint64_t>()) + " steps of dt = " + num(scene.dt) +
+              " s are " + num(seconds) + " s of play, more than the limit of " +
+              num(kMaxRerunSeconds) + " s (24 hours)");
   PluginLoader loader(plugin_search_dirs(scene.plugin_path));
   PinballGame game(scene, loader);
   game.rerun(rec);

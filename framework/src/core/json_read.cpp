@@ -7,6 +7,8 @@
 #include <set>
 #include <vector>
 
+#include "core/bounded_read.hpp"
+
 namespace pinsim {
 
 std::string describe(const nlohmann::json& v) {
@@ -268,6 +270,18 @@ nlohmann::json parse_json_text(const std::string& text, const std::string& label
   }
   if (auto p = what.find("syntax error"); p != std::string::npos) what = what.substr(p);
   throw JsonSyntaxError(where + "malformed JSON: " + what);
+}
+
+std::string read_json_text(std::istream& in, const std::string& label, std::size_t max_bytes) {
+  std::string text;
+  char buf[1 << 16];
+  while (in.read(buf, sizeof buf) || in.gcount() > 0) {
+    text.append(buf, static_cast<std::size_t>(in.gcount()));
+    if (text.size() > max_bytes)
+      throw InputError(label + ": larger than the limit of " + std::to_string(max_bytes) +
+                       " bytes for a JSON file");
+  }
+  return text;
 }
 
 nlohmann::json read_json_file(const std::filesystem::path& file) {

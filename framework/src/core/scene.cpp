@@ -5,6 +5,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/bounded_read.hpp"
 #include "core/format.hpp"
 #include "core/json_read.hpp"
 #include "core/trajectory_hdf5.hpp"
@@ -417,9 +418,9 @@ Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides
     throw SceneError(file.string() + ": is a folder, expected a scene file");
   std::ifstream in(file);
   if (!in) throw SceneError(file.string() + ": cannot be read");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_scene(ss.str(), file.string(), fs::absolute(file).parent_path(), overrides);
+  // Bounded: the file may be a pipe (`run <(cmd)`) or a device that never ends.
+  const std::string text = read_json_text(in, file.string());
+  return parse_scene(text, file.string(), fs::absolute(file).parent_path(), overrides);
 }
 
 }  // namespace pinsim

@@ -4,6 +4,7 @@
 #include <set>
 #include <sstream>
 
+#include "core/bounded_read.hpp"
 #include "core/json_read.hpp"
 
 namespace fs = std::filesystem;
@@ -27,9 +28,7 @@ const std::set<std::string> kBackendChecks = {"load", "backend_agreement", "back
 
 std::string read_text(const fs::path& p) {
   std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
+  return read_json_text(in, p.string());  // bounded: it may be a pipe or a device
 }
 
 double positive(const nlohmann::json& j, const char* key, double fallback, const Loc& at,

@@ -1,5 +1,6 @@
 #include "pictures/render_data.hpp"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -52,8 +53,21 @@ void read_csv(const fs::path& file, const std::string& header, std::size_t field
     if (!parse_numbers(line, v) || v.size() != fields)
       throw std::runtime_error(file.string() + ":" + std::to_string(n) + ": expected " +
                                std::to_string(fields) + " numbers");
-    row(v);
+    try {
+      row(v);
+    } catch (const std::invalid_argument& e) {  // a row's value out of place: name the line
+      throw std::runtime_error(file.string() + ":" + std::to_string(n) + ": " + e.what());
+    }
   }
+}
+
+/// A particle index read as a double: an integer in [0, count), else invalid_argument
+/// saying `expected`. (Checked before the cast: a double past the integer range would be
+/// undefined behaviour.)
+std::size_t particle_index(double v, std::size_t count, const std::string& expected) {
+  if (!(v >= 0 && v < static_cast<double>(count) && v == std::floor(v)))
+    throw std::invalid_argument(fmt::format("particle index {}: expected ", v) + expected);
+  return static_cast<std::size_t>(v);
 }
 
 using Vec = Eigen::Vector2d;
@@ -120,13 +134,21 @@ RunData load_run(const fs::path& dir) {
       }
     }
   } else {
+    // pinsim writes every particle in every frame, in order: a particle index is one seen
+    // before or the next one, so the series grow with the file (an index of 10^7 in a small
+    // file once made render run for minutes and replay take gigabytes).
     read_csv(dir / "trajectory.csv", "t,particle,x,y,vx,vy", 6, [&](const std::vector<double>& v) {
-      const auto i = static_cast<std::size_t>(v[1]);
-      if (v[1] < 0 || i > 10000000) throw std::runtime_error("bad particle index");
-      if (r.particles.size() <= i) r.particles.resize(i + 1);
+      const std::size_t i =
+          particle_index(v[1], r.particles.size() + 1,
+                         "an integer from 0 to " + std::to_string(r.particles.size()) +
+                             " (each frame lists the particles 0, 1, 2, ... in order)");
+      if (r.particles.size() == i) r.particles.emplace_back();
       r.particles[i].push_back({v[0], v[2], v[3], v[4], v[5]});
     });
   }
+  if (fs::exists(dir / "events.csv") && !fs::is_regular_file(dir / "events.csv"))
+    throw std::runtime_error((dir / "events.csv").string() +
+                             ": not a regular file (a folder, pipe or device)");
   if (fs::exists(dir / "events.csv")) {
     // The obstacle column holds the obstacle's id (or index); other_particle may be empty.
     const fs::path file = dir / "events.csv";
@@ -152,12 +174,23 @@ RunData load_run(const fs::path& dir) {
       };
       if (f.size() != 10)
         throw std::runtime_error(file.string() + ":" + std::to_string(n) + ": expected 10 fields");
+      auto index = [&](std::size_t k) {
+        try {
+          return static_cast<int64_t>(particle_index(
+              num(k), r.particles.size(),
+              "one of the trajectory's " + std::to_string(r.particles.size()) +
+                  " particles, an integer below " + std::to_string(r.particles.size())));
+        } catch (const std::invalid_argument& e) {
+          throw std::runtime_error(file.string() + ":" + std::to_string(n) + ": field " +
+                                   std::to_string(k + 1) + ": " + e.what());
+        }
+      };
       ContactMark c{};
       c.t = num(0);
-      c.particle = static_cast<int64_t>(num(1));
+      c.particle = index(1);
       c.obstacle_id = f[2];
       c.obstacle = -1;
-      c.other = f[3].empty() ? -1 : static_cast<int64_t>(num(3));
+      c.other = f[3].empty() ? -1 : index(3);
       c.x = num(4), c.y = num(5), c.nx = num(6), c.ny = num(7);
       c.vn_before = num(8), c.vn_after = num(9);
       r.contacts.push_back(c);

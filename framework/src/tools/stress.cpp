@@ -202,6 +202,16 @@ int run(const Options& o) {
     c.pen_tol = read_number_or(cj, "penetration_tolerance",
                                read_number_or(d, "penetration_tolerance", 1e-3, top), at);
     c.displacement_limit = read_number_or(cj, "displacement_limit", 0.0, at);
+    // Checked here, once (as the schema says): a blow-up factor <= 0 once made every point
+    // an "error" row and the sweep exit 0.
+    const auto where_of = [&](const char* key) { return cj.contains(key) ? at / key : top / key; };
+    if (!(c.blowup > 0.0 && c.blowup < HUGE_VAL))
+      where_of("energy_blowup").fail("must be a number > 0, got " + num(c.blowup));
+    if (!(c.pen_tol >= 0.0 && c.pen_tol < HUGE_VAL))
+      where_of("penetration_tolerance").fail("must be a number >= 0, got " + num(c.pen_tol));
+    if (!(c.displacement_limit >= 0.0 && c.displacement_limit < HUGE_VAL))
+      (at / "displacement_limit")
+          .fail("must be a number >= 0 (0: off), got " + num(c.displacement_limit));
     if (c.kind != "tunnelling") {
       if (!cj.contains("scene")) throw InputError(cw + ".scene: required");
       c.doc = sweep::scene_doc(cfg, cj["scene"], c.base);

@@ -252,3 +252,28 @@ TEST_CASE("limits: arrays, strings and particle counts have limits, raised from 
                   small + " 2>&1");
   CHECK(r.code == 0);
 }
+
+TEST_CASE(
+    "limits: an input that never ends (a link to /dev/zero, a pipe) stops at the size limit") {
+  // Reading the whole file before the 256 MiB check once took all memory on /dev/zero (a
+  // device: no size to check before reading) or on `run <(yes)` (a pipe). The reads are now
+  // bounded. A memory limit of 1 GiB makes the old behaviour fail here instead of swapping.
+  const auto dir = test::temp_dir("limits-endless");
+  std::filesystem::create_symlink("/dev/zero", dir / "zero.json");
+  const std::string zero = (dir / "zero.json").string();
+  const std::string limit =
+      "larger than the limit of " + std::to_string(256u << 20) + " bytes for a JSON file";
+  for (const std::string& cmd :
+       {"validate " + zero, "run " + zero + " --out " + (dir / "run").string(),
+        "run " + zero + " --backend box2d --out " + (dir / "run").string(), "play --rerun " + zero,
+        "grade --rubric " + zero + " --submission " + (dir / "none").string()}) {
+    const auto r = test::shell("ulimit -v 1048576; " PINSIM_BIN " " + cmd + " 2>&1");
+    CAPTURE(cmd);
+    CHECK(r.code == 2);
+    CHECK_THAT(r.output, Contains(zero + ": " + limit));
+  }
+  // A pipe that never ends, as `run <(yes)` gives.
+  const auto r = test::shell("ulimit -v 1048576; yes | " PINSIM_BIN " validate /dev/stdin 2>&1");
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output, Contains("/dev/stdin: " + limit));
+}

@@ -382,6 +382,48 @@ TEST_CASE("render and replay: a folder that is not a readable run is exit 2 nami
     CHECK_THAT(r.output.c_str(), Catch::Contains(run.string() + ": cannot read the run folder: ") &&
                                      Catch::Contains("trajectory.csv:2: expected 6 numbers"));
   }
+  // Particle indices out of place (hand-edited or damaged files): an index of 10^7 in a
+  // three-row file once made render draw ten million empty paths for minutes and replay take
+  // gigabytes; 1e300 was cast to an integer (undefined behaviour). Each row is named.
+  const fs::path idx = make_run("bad-index");
+  const std::vector<std::pair<std::string, std::string>> index_cases = {
+      {"0,0,0.5,0.5,0,0\n0,9999999,0.5,0.5,0,0\n",
+       "trajectory.csv:3: particle index 9999999: expected an integer from 0 to 1 (each frame "
+       "lists the particles 0, 1, 2, ... in order)"},
+      {"0,1e300,0.5,0.5,0,0\n", "trajectory.csv:2: particle index 1e+300: expected an integer"},
+      {"0,-1,0.5,0.5,0,0\n", "trajectory.csv:2: particle index -1: expected an integer"},
+      {"0,0.5,0.5,0.5,0,0\n", "trajectory.csv:2: particle index 0.5: expected an integer"},
+      {"0,nan,0.5,0.5,0,0\n", "trajectory.csv:2: particle index nan: expected an integer"}};
+  for (const auto& [rows, message] : index_cases) {
+    test::write_file(idx / "trajectory.csv", "t,particle,x,y,vx,vy\n" + rows);
+    for (const std::string cmd : {"render ", "replay "}) {
+      r = pinsim_cli(cmd + idx.string() + " " + kView + " --out " + (idx / "x.html").string());
+      CAPTURE(cmd, rows);
+      CHECK(r.code == 2);
+      CHECK_THAT(r.output.c_str(),
+                 Catch::Contains(idx.string() + ": cannot read the run folder: ") &&
+                     Catch::Contains(message));
+    }
+  }
+  // The same in events.csv: a contact of a particle the trajectory does not have.
+  test::write_file(idx / "trajectory.csv", "t,particle,x,y,vx,vy\n0,0,0.5,0.5,0,0\n");
+  const std::string header = "t,particle,obstacle,other_particle,x,y,nx,ny,vn_before,vn_after\n";
+  for (const auto& [row, message] : std::vector<std::pair<std::string, std::string>>{
+           {"0.1,1e300,floor,,0.5,0,0,1,-1,1\n",
+            "events.csv:2: field 2: particle index 1e+300: expected one of the trajectory's 1 "
+            "particles, an integer below 1"},
+           {"0.1,0,,3,0.5,0,0,1,-1,1\n", "events.csv:2: field 4: particle index 3: expected"}}) {
+    test::write_file(idx / "events.csv", header + row);
+    r = pinsim_cli("render " + idx.string() + " " + kView + " --out " + (idx / "x.png").string());
+    CAPTURE(row);
+    CHECK(r.code == 2);
+    CHECK_THAT(r.output.c_str(), Catch::Contains(message));
+  }
+  // ... and a well-formed pair of files is drawn.
+  test::write_file(idx / "events.csv", header + "0.1,0,,0,0.5,0,0,1,-1,1\n");
+  CHECK(pinsim_cli("-q render " + idx.string() + " " + kView + " --out " + (idx / "x.png").string())
+            .code == 0);
+
   // A summary.json nested 100,000 deep (once a stack overflow): refused while parsing.
   const fs::path deep = make_run("deep-summary");
   test::write_file(deep / "summary.json", std::string(100000, '[') + std::string(100000, ']'));
@@ -428,6 +470,19 @@ TEST_CASE("play --rerun: a recording that cannot be used is exit 2 naming the fi
     CHECK(r.code == 2);
     CHECK_THAT(r.output.c_str(), Catch::Contains(message));
   }
+  // An edited step count of 10^18 (once a rerun that never ended: the ball rests in the
+  // plunger lane and never drains) is refused past a day of play, 86400 s / 0.0002 s steps.
+  nlohmann::json endless = good;
+  endless["steps"] = 1000000000000000000ull;
+  test::write_file(dir / "rec.json", endless.dump());
+  r = pinsim_cli("play --rerun " + (dir / "rec.json").string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output.c_str(),
+             Catch::Contains("rec.json: steps: 1000000000000000000 steps of dt = 0.0002 s are "
+                             "2e+14 s of play, more than the limit of 86400 s (24 hours)"));
+  endless["steps"] = 432000001;  // one step past the limit
+  test::write_file(dir / "rec.json", endless.dump());
+  CHECK(pinsim_cli("play --rerun " + (dir / "rec.json").string()).code == 2);
   // The good one reruns (its made-up hash differs: exit 1), also under the option's other name.
   test::write_file(dir / "rec.json", good.dump());
   CHECK(pinsim_cli("play --replay " + (dir / "rec.json").string()).code == 1);
