@@ -4,7 +4,6 @@
 #include <set>
 #include <sstream>
 
-#include "core/bounded_read.hpp"
 #include "core/json_read.hpp"
 
 namespace fs = std::filesystem;
@@ -28,7 +27,9 @@ const std::set<std::string> kBackendChecks = {"load", "backend_agreement", "back
 
 std::string read_text(const fs::path& p) {
   std::ifstream in(p);
-  return read_json_text(in, p.string());  // bounded: it may be a pipe or a device
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
 }
 
 double positive(const nlohmann::json& j, const char* key, double fallback, const Loc& at,

@@ -281,6 +281,20 @@ TEST_CASE("bench and stress configs: a value of the wrong type is exit 2 with fi
        "stress.json: energy_blowup: expected a number, got boolean true"},
       {"stress", R"({"cases": [{"kind": 7, "speeds": [1], "thickness": [0.01], "dt": [0.01]}]})",
        "stress.json: cases[0].kind: expected a string, got number 7"},
+      // Numbers out of the schema's range: energy_blowup -1 (or 0) once made every point an
+      // "error: checks.energy_blowup: must be > 0" row and the sweep exit 0.
+      {"stress", R"({"energy_blowup": -1, "cases": [{"kind": "tunnelling", "speeds": [1],
+         "thickness": [0.01], "dt": [0.01]}]})",
+       "stress.json: energy_blowup: must be a number > 0, got -1"},
+      {"stress", R"({"cases": [{"kind": "tunnelling", "speeds": [1], "energy_blowup": 0,
+         "thickness": [0.01], "dt": [0.01]}]})",
+       "stress.json: cases[0].energy_blowup: must be a number > 0, got 0"},
+      {"stress", R"({"cases": [{"kind": "tunnelling", "speeds": [1],
+         "penetration_tolerance": -0.5, "thickness": [0.01], "dt": [0.01]}]})",
+       "stress.json: cases[0].penetration_tolerance: must be a number >= 0, got -0.5"},
+      {"stress", R"({"cases": [{"kind": "tunnelling", "speeds": [1],
+         "displacement_limit": -1, "thickness": [0.01], "dt": [0.01]}]})",
+       "stress.json: cases[0].displacement_limit: must be a number >= 0 (0: off), got -1"},
   };
   for (const Bad& b : bad) {
     CAPTURE(b.text);
