@@ -306,6 +306,17 @@ TEST_CASE("bench and stress configs: a value of the wrong type is exit 2 with fi
     CHECK_THAT(r.output, Catch::Contains(b.message));
     CHECK_THAT(r.output, !Catch::Contains("type_error"));
   }
+  // A dt longer than the scene's 2 s makes no step (llround(2 / 5) = 0): once a point with
+  // error 0 and time 0, reported "ok" as the sweep's best error.
+  pinsim::test::write_file(dir / "bench.json",
+                           bench_with("\"dt\": [0.01, 0.005", "\"dt\": [5.0, 0.005"));
+  {
+    const auto r = pinsim_cli("-q bench " + (dir / "bench.json").string() + " --out " +
+                              (dir / "out3").string());
+    CHECK(r.code == 2);
+    CHECK_THAT(r.output, Catch::Contains("bench.json: cases[0].dt: 5 s makes no step in the "
+                                         "scene's 2 s (a dt must be at most the duration)"));
+  }
   // The answer's own numbers are read when the point runs: still located.
   pinsim::test::write_file(dir / "bench.json", bench_with("\"omega\": 3.0", "\"omega\": \"3\""));
   const auto r =
