@@ -102,6 +102,11 @@ Outcome run_point(const Case& c, const Point& p, PluginLoader& loader) {
   Simulation sim(scene, loader);
   const bool dist = sim.backend().has_distance();
   const uint64_t N = scene.steps();
+  if (N == 0) {  // no step: nothing was tested (such a point was once classed "stable")
+    o.cls =
+        "error: dt " + num(p.dt) + " s makes no step in the scene's " + num(scene.duration) + " s";
+    return o;
+  }
   const Eigen::Matrix2Xd x0 = sim.state().x;
   const auto t0 = std::chrono::steady_clock::now();
   try {

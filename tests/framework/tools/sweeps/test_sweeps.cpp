@@ -143,6 +143,27 @@ TEST_CASE("bench: a bad --shard value is exit 2 naming the flag and the form exp
   CHECK(!fs::exists(dir / "out"));  // nothing ran
 }
 
+TEST_CASE("stress: a dt that makes no step is an error row, not a stable point") {
+  // Duration 1 s: dt 5 s gives llround(1 / 5) = 0 steps. Such a point was once classed
+  // "stable" and shown as the last stable h w (here 5 x 10 = 50, theory: 2).
+  const fs::path dir = pinsim::test::temp_dir("stress-no-step");
+  pinsim::test::write_file(dir / "stress.json", R"({"integrators": ["symplectic_euler"],
+    "cases": [{"name": "spring", "kind": "stiffness",
+      "scene": {"time": {"dt": 0.01, "duration": 1.0},
+                "particles": [{"x": [0, 0], "pinned": true}, {"x": [1.2, 0], "v": [0, 0.3]}],
+                "forces": [{"type": "linear_spring", "params": {"k": 100.0, "rest_length": 1.0},
+                            "elements": [[0, 1]]}]},
+      "stiffness": {"path": "forces[0].params.k", "values": [100]}, "dt": [0.01, 5.0]}]})");
+  const auto r = pinsim_cli("-q stress " + (dir / "stress.json").string() + " --out " +
+                            (dir / "out").string());
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  const auto rows = read_csv(dir / "out" / "stress.csv");
+  REQUIRE(rows.size() == 2);
+  CHECK(rows[0].at("class") == "stable");
+  CHECK(rows[1].at("class") == "error: dt 5 s makes no step in the scene's 1 s");
+}
+
 TEST_CASE("stress: spring and bending stability limits bracket theory") {
   // Theory for x'' = -w^2 x, y = h w: symplectic Euler and velocity Verlet stable iff y < 2,
   // RK4 iff y <= 2 sqrt 2, explicit Euler never (|amplification|^2 = 1 + y^2), implicit
