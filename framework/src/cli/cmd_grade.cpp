@@ -26,6 +26,25 @@ namespace fs = std::filesystem;
 namespace pinsim::cli {
 namespace {
 
+/// A submission's file name as one CSV cell: '%', ',', '"' and control characters as %XX
+/// (percent-encoding). A name holding "\nalice,10.0,10.0" once wrote a forged row into the
+/// class table, and "bob,10.0" shifted bob's columns.
+std::string csv_cell(const std::string& name) {
+  std::string out;
+  for (const char ch : name) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c < 0x20 || c == 0x7f || c == '%' || c == ',' || c == '"') {
+      static const char* hex = "0123456789ABCDEF";
+      out += '%';
+      out += hex[c >> 4];
+      out += hex[c & 15];
+    } else {
+      out += ch;
+    }
+  }
+  return out;
+}
+
 struct GradeArgs {
   std::string rubric, submission, out = "grade-out", sdk_prefix, shard = "0/1";
   bool batch = false, unsafe = false;
@@ -137,10 +156,11 @@ int grade_batch(const GradeArgs& a) {
   for (const auto& s : mine) {
     std::ifstream in(fs::path(a.out) / s.filename() / "results.json");
     const auto r = nlohmann::json::parse(in, nullptr, false);
+    const std::string name = csv_cell(s.filename().string());
     if (r.is_discarded())
-      t.rows.push_back({s.filename().string(), "", ""});  // the grader failed: visible, not 0
+      t.rows.push_back({name, "", ""});  // the grader failed: visible, not 0
     else
-      t.rows.push_back({s.filename().string(), r["score"].dump(), r["max_score"].dump()});
+      t.rows.push_back({name, r["score"].dump(), r["max_score"].dump()});
   }
   if (shard.count == 1) {
     t.write(csv);

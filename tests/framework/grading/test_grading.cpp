@@ -205,6 +205,23 @@ TEST_CASE("grader: collision backends against the reference sdf backend") {
              Contains("while separating"));
 }
 
+TEST_CASE("grader: a submission's name cannot forge a row or shift columns of the batch CSV") {
+  // File names are the students' own: "mallory\nalice,10.0,10.0" once added a row giving
+  // alice 10.0 of 10.0, and "bob,10.0" put 10.0 in bob's score column. Names are written
+  // percent-encoded ('%', ',', '"', control characters); each is graded as usual (3.0).
+  const fs::path batch = pinsim::test::temp_dir("batch-names");
+  for (const char* n : {"mallory\nalice,10.0,10.0", "bob,10.0"})
+    fs::copy(subs / "sign_error", batch / n, fs::copy_options::recursive);
+  const fs::path out = pinsim::test::temp_dir("batch-names-out");
+  const std::string cmd = std::string(PINSIM_BIN) + " -q grade --batch --jobs 2 --rubric " +
+                          (src / "rubric_springs.json").string() + " --submission " +
+                          batch.string() + " --out " + out.string() + " > /dev/null 2>&1";
+  REQUIRE(std::system(cmd.c_str()) == 0);
+  CHECK(pinsim::test::read_file(out / "batch-0-of-1.csv") ==
+        "submission,score,max_score\nbob%2C10.0,3.0,10.0\n"
+        "mallory%0Aalice%2C10.0%2C10.0,3.0,10.0\n");
+}
+
 TEST_CASE("grader: batch mode grades a folder of submissions in shards") {
   const fs::path batch = pinsim::test::temp_dir("batch-in");
   for (const char* n : {"sign_error", "wrong_jacobian", "segfault"})
