@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <climits>
 #include <cmath>
 #include <cstdint>
 #include <cstdio>
@@ -130,11 +131,23 @@ std::optional<Manifest> read_manifest(const fs::path& csv) {
     if (!j.is_object()) throw std::runtime_error("not a JSON object");
     m.tool = j.at("tool").get<std::string>();
     m.sweep = j.at("sweep").get<std::string>();
-    m.shard.index = j.at("shard").get<int>();
-    m.shard.count = j.at("shards").get<int>();
-    m.points = j.at("points").get<std::size_t>();
-    m.rows = j.at("rows").get<std::size_t>();
+    // Counts as non-negative integers within an int (an edited "shards": 1e18 once read as
+    // -1486618624, a 1e300 was a double cast to int: undefined behaviour).
+    const Loc at{p.string(), ""};
+    for (const char* key : {"shard", "shards", "points", "rows"})
+      if (!j.contains(key)) (at / key).fail("required");
+    const uint64_t index = read_count_or(j, "shard", 0, at),
+                   count = read_count_or(j, "shards", 0, at);
+    if (!(count >= 1 && count <= INT_MAX && index < count))
+      at.fail("expected shard i of N with N >= 1 and 0 <= i < N, got " + std::to_string(index) +
+              " of " + std::to_string(count));
+    m.shard.index = static_cast<int>(index);
+    m.shard.count = static_cast<int>(count);
+    m.points = read_count_or(j, "points", 0, at);
+    m.rows = read_count_or(j, "rows", 0, at);
     m.csv_hash = j.at("csv_hash").get<std::string>();
+  } catch (const InputError&) {
+    throw;  // names the manifest and the JSON path already
   } catch (const std::exception& e) {
     throw InputError(p.string() + ": not a shard manifest (" + e.what() + ")");
   }

@@ -4,6 +4,7 @@
 // the tunnelling grid, sharding + merge reproducing an unsharded sweep, and the plots.
 #include <sys/wait.h>
 
+#include <array>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstdio>
@@ -123,6 +124,28 @@ TEST_CASE("bench --shard i/N and merge reproduce the unsharded errors") {
   const auto bad = pinsim_cli("-q merge --out " + out + " " + out + "/nope.csv");
   CHECK(bad.code != 0);
   CHECK_THAT(bad.output, Catch::Contains("nope.csv"));
+  // An edited manifest's counts: "shards": 1e18 once read as -1486618624 shards, 1e300 was
+  // cast from a double to int (undefined behaviour), "shard": -1 counted as a shard.
+  const fs::path manifest = dir / "out" / "bench.shard-0-of-3.json";
+  const std::string good = pinsim::test::read_file(manifest);
+  for (const auto& [from, to, message] : std::vector<std::array<std::string, 3>>{
+           {"\"shards\": 3", "\"shards\": 1000000000000000000",
+            "bench.shard-0-of-3.json: (top level): expected shard i of N with N >= 1 and 0 <= i "
+            "< N, got 0 of 1000000000000000000"},
+           {"\"shards\": 3", "\"shards\": 1e300",
+            "bench.shard-0-of-3.json: shards: expected a non-negative integer, got number 1e+300"},
+           {"\"shard\": 0", "\"shard\": -1",
+            "bench.shard-0-of-3.json: shard: expected a non-negative integer, got number -1"}}) {
+    std::string text = good;
+    REQUIRE(text.find(from) != std::string::npos);
+    text.replace(text.find(from), from.size(), to);
+    pinsim::test::write_file(manifest, text);
+    const auto r = pinsim_cli("-q merge --out " + out + " " + out + "/bench.shard-0-of-3.csv " +
+                              out + "/bench.shard-1-of-3.csv " + out + "/bench.shard-2-of-3.csv");
+    CAPTURE(to);
+    CHECK(r.code == 2);
+    CHECK_THAT(r.output, Catch::Contains(message));
+  }
 }
 
 TEST_CASE("bench: a bad --shard value is exit 2 naming the flag and the form expected") {
