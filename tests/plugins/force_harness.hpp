@@ -83,13 +83,24 @@ class Force {
       throw std::runtime_error(std::string("energy: ") + msg);
     return e;
   }
-  /// Dense df/dx (which = 0) or df/dv (which = 1).
-  Eigen::MatrixXd jacobian(const Particles& s, int which) const {
+  /// Dense df/dx (which = 0) or df/dv (which = 1), received as the host receives it: 2x2
+  /// blocks through the sink's add_blocks (block k at particles p[2k], p[2k+1], values
+  /// v[4k..4k+3] column-major), single entries through add. With `blocks` false the sink has
+  /// no add_blocks, as for a host that predates it: every entry comes through add.
+  Eigen::MatrixXd jacobian(const Particles& s, int which, bool blocks = true) const {
     const auto m = static_cast<Eigen::Index>(2 * s.n());
     Eigen::MatrixXd k = Eigen::MatrixXd::Zero(m, m);
-    pinsim_triplet_sink sink{&k, [](void* c, uint32_t r, uint32_t col, double v) {
+    pinsim_triplet_sink sink{&k,
+                             [](void* c, uint32_t r, uint32_t col, double v) {
                                (*static_cast<Eigen::MatrixXd*>(c))(r, col) += v;
+                             },
+                             [](void* c, const uint32_t* p, const double* v, uint64_t count) {
+                               auto& km = *static_cast<Eigen::MatrixXd*>(c);
+                               for (uint64_t b = 0; b < count; ++b)
+                                 km.block<2, 2>(2 * p[2 * b], 2 * p[2 * b + 1]) +=
+                                     Eigen::Map<const Eigen::Matrix2d>(v + 4 * b);
                              }};
+    if (!blocks) sink.add_blocks = nullptr;
     const pinsim_state_view sv = s.view();
     char msg[512] = {0};
     pinsim_error err{msg, sizeof msg};

@@ -26,8 +26,11 @@ extern "C" {
  *  3: pinsim_backend_api gained outline() (PINSIM_CAP_OUTLINES). The new member makes
  *     sizeof(pinsim_plugin) larger, so a table of version 2 is shorter than the host reads;
  *     the host refuses any version but its own, naming both ("rebuild it against this
- *     SDK"), before it reads a member past struct_size. */
-#define PINSIM_ABI_VERSION 3u
+ *     SDK"), before it reads a member past struct_size.
+ *  4: pinsim_triplet_sink gained add_blocks() (many 2x2 blocks in one call). A plugin of
+ *     version 3 would never call it, but a plugin of version 4 reads it from the host's
+ *     sink, which a version-3 host does not have: the versions must match, so this bumps. */
+#define PINSIM_ABI_VERSION 4u
 
 /** Force arity of a plugin whose elements have variable length: each element is a whole
  *  body or a closed ring (all of a blob's boundary particles in order), not a fixed-size
@@ -112,10 +115,17 @@ typedef struct pinsim_state_mut {
   const double* radius;
 } pinsim_state_mut;
 
-/** Sparse matrix sink: the plugin adds value at (row, col), rows/cols are dofs. */
+/** Sparse matrix sink: the plugin adds value at (row, col), rows/cols are dofs.
+ *  add_blocks (may be NULL: then use add) adds `count` 2x2 blocks d f_i / d x_j in one call:
+ *  block k is at particles i = particles[2k], j = particles[2k + 1] (dofs 2i, 2i+1 by
+ *  2j, 2j+1) with values[4k .. 4k+3] = its entries column-major (d f_ix/d x_jx,
+ *  d f_iy/d x_jx, d f_ix/d x_jy, d f_iy/d x_jy). Equivalent to the four add() calls of each
+ *  block, row by row ((2i,2j), (2i,2j+1), (2i+1,2j), (2i+1,2j+1)), block after block. */
 typedef struct pinsim_triplet_sink {
   void* context;
   void (*add)(void* context, uint32_t row, uint32_t col, double value);
+  void (*add_blocks)(void* context, const uint32_t* particles, const double* values,
+                     uint64_t count);
 } pinsim_triplet_sink;
 
 /** One contact, reported by a backend. obstacle is the index into the scene's

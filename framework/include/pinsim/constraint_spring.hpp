@@ -18,8 +18,8 @@
 //   };
 //   PINSIM_PLUGIN(MySpring)
 //
-// The base provides add_force, energy, add_dfdx and add_dfdv, so the plugin gets the
-// capabilities ENERGY | DFDX | DFDV. Jacobians (s = ks C + kd dC/dt, H = d2C/dp2):
+// The base provides add_force, energy, add_dfdx and add_dfdv (and add_jacobians, both in one
+// pass, which the host calls), so the plugin gets the capabilities ENERGY | DFDX | DFDV. Jacobians (s = ks C + kd dC/dt, H = d2C/dp2):
 //   df/dx = -ks J^T J - s H - kd J^T (H v)^T       (d(J v)/dx = H v)
 //   df/dv = -kd J^T J
 #pragma once
@@ -140,6 +140,29 @@ class ConstraintSpring {
       const double sc = ks_ * c + kd_ * g.dot(vv);
       const Hessian k = -ks_ * g * g.transpose() - sc * h - kd_ * g * (h * vv).transpose();
       scatter(e, k, out);
+    }
+  }
+
+  /// Both in one pass over the elements (C and J once per element; what the host asks for
+  /// each step): df/dx into *dx, df/dv into *dv, either may be null. The same entries, in
+  /// the same order per matrix, as add_dfdx and add_dfdv.
+  void add_jacobians(const StateView& s, Triplets* dx, Triplets* dv) const {
+    if (dv != nullptr && kd_ == 0.0) dv = nullptr;
+    if (dx == nullptr && dv == nullptr) return;
+    for (std::size_t e = 0; e < count(); ++e) {
+      const Stencil p = gather(s.x, e);
+      Stencil dC;
+      const double c = self().constraint(e, p, dC);
+      const Eigen::Map<const Eigen::Matrix<double, kDofs, 1>> g(dC.data());
+      if (dx != nullptr) {
+        const Stencil vel = gather(s.v, e);
+        const Eigen::Map<const Eigen::Matrix<double, kDofs, 1>> vv(vel.data());
+        const Hessian h = hessian(e, p);
+        const double sc = ks_ * c + kd_ * g.dot(vv);
+        const Hessian k = -ks_ * g * g.transpose() - sc * h - kd_ * g * (h * vv).transpose();
+        scatter(e, k, *dx);
+      }
+      if (dv != nullptr) scatter(e, -kd_ * g * g.transpose(), *dv);
     }
   }
 

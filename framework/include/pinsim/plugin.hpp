@@ -36,6 +36,7 @@
 #include <cstring>
 #include <exception>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -92,18 +93,45 @@ struct MutableState {
 using ForceOut = Eigen::Map<Eigen::Matrix2Xd>;
 
 /// Sparse Jacobian accumulator; rows and columns are dofs (2*particle + component).
+/// add_block() collects blocks and hands them to the host kBatch at a time through the
+/// sink's add_blocks() (one call instead of four per block), or entry by entry through add()
+/// if the host's sink has no add_blocks; add() and the destructor hand over the collected
+/// blocks first, so the host receives every entry in the order they were added.
 class Triplets {
  public:
   explicit Triplets(const pinsim_triplet_sink& s) : sink_(s) {}
-  void add(uint32_t row, uint32_t col, double value) { sink_.add(sink_.context, row, col, value); }
+  Triplets(const Triplets&) = delete;
+  Triplets& operator=(const Triplets&) = delete;
+  ~Triplets() { flush(); }
+  void add(uint32_t row, uint32_t col, double value) {
+    flush();
+    sink_.add(sink_.context, row, col, value);
+  }
   /// Adds the 2x2 block d f_i / d x_j.
   void add_block(uint32_t i, uint32_t j, const Mat2& b) {
-    for (uint32_t r = 0; r < 2; ++r)
-      for (uint32_t c = 0; c < 2; ++c) add(2 * i + r, 2 * j + c, b(r, c));
+    if (sink_.add_blocks == nullptr) {
+      for (uint32_t r = 0; r < 2; ++r)
+        for (uint32_t c = 0; c < 2; ++c) sink_.add(sink_.context, 2 * i + r, 2 * j + c, b(r, c));
+      return;
+    }
+    particles_[2 * count_] = i;
+    particles_[2 * count_ + 1] = j;
+    std::memcpy(values_ + 4 * count_, b.data(), 4 * sizeof(double));  // column-major
+    if (++count_ == kBatch) flush();
+  }
+  /// Hands the collected blocks to the host (add() and the destructor do it too).
+  void flush() {
+    if (count_ == 0) return;
+    sink_.add_blocks(sink_.context, particles_, values_, count_);
+    count_ = 0;
   }
 
  private:
+  static constexpr uint32_t kBatch = 64;
   pinsim_triplet_sink sink_;
+  uint32_t count_ = 0;
+  uint32_t particles_[2 * kBatch];
+  double values_[4 * kBatch];
 };
 
 /// Contact event sink for backends.
@@ -353,6 +381,12 @@ template <class T>
 concept HasDfdv = requires(const T& t, const StateView& s, Triplets& j) {
   t.add_dfdv(s, j);
 };
+/// Optional: both Jacobians in one pass, add_jacobians(s, Triplets* dfdx, Triplets* dfdv)
+/// (either may be null); used instead of add_dfdx and add_dfdv when present.
+template <class T>
+concept HasJacobians = requires(const T& t, const StateView& s, Triplets* j) {
+  t.add_jacobians(s, j, j);
+};
 template <class T>
 concept HasDistance = requires(const T& t, const Vec2& p, double time, int64_t* o) {
   { t.distance(p, time, o) } -> std::convertible_to<double>;
@@ -481,6 +515,13 @@ const pinsim_plugin* make_table() {
           return guarded(err, [&] {
             StateView s(*sv);
             const T* p = static_cast<const T*>(self);
+            if constexpr (HasJacobians<T> && HasDfdx<T> && HasDfdv<T>) {
+              std::optional<Triplets> jx, jv;
+              if (dx != nullptr) jx.emplace(*dx);
+              if (dv != nullptr) jv.emplace(*dv);
+              p->add_jacobians(s, jx ? &*jx : nullptr, jv ? &*jv : nullptr);
+              return;
+            }
             if constexpr (HasDfdx<T>) {
               if (dx != nullptr) {
                 Triplets j(*dx);

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 #include "core/integrators.hpp"
@@ -58,7 +59,6 @@ class ImplicitEuler : public Integrator {
   void step(Simulation& sim, double h) override {
     State& s = sim.state();
     sim.compute_forces(s, f_);
-    sim.jacobian_triplets(s, tx_, tv_);
     const Eigen::Index n = 2 * static_cast<Eigen::Index>(s.size());
     const Eigen::Map<const Eigen::VectorXd> f(f_.data(), n), v0(s.v.data(), n);
 
@@ -70,7 +70,7 @@ class ImplicitEuler : public Integrator {
     const Eigen::VectorXd& m = m_;
     // A, and K v_n straight from the entries; b = h (f_n + h K v_n), pinned rows zeroed.
     if (kv_.size() != n) kv_.resize(n);
-    assemble(n, h, v0);
+    assemble(sim, s, n, h, v0);
     if (b_.size() != n) b_.resize(n);
     b_ = h * (f + h * kv_);
     for (Eigen::Index i = 0; i < n; ++i)
@@ -92,23 +92,21 @@ class ImplicitEuler : public Integrator {
     double residual = 0.0;
     bool converged = false;
     const char* method = symmetric ? "conjugate gradients" : "BiCGSTAB";
+    // One solve path for both Krylov methods (Eigen gives them the same interface).
+    auto krylov = [&](auto& solver) {
+      solver.setTolerance(1e-12);
+      solver.setMaxIterations(max_iterations);
+      solver.compute(A_);
+      dv_ = solver.solveWithGuess(b, dv_);
+      iterations = solver.iterations();
+      residual = solver.error();
+      converged = solver.info() == Eigen::Success;
+    };
     if (symmetric) {
-      cg_.setTolerance(1e-12);
-      cg_.setMaxIterations(max_iterations);
-      cg_.compute(A_);
-      dv_ = cg_.solveWithGuess(b, dv_);
-      iterations = cg_.iterations();
-      residual = cg_.error();
-      converged = cg_.info() == Eigen::Success;
+      krylov(cg_);
     } else {
       ++bicgstab_solves_;
-      bicgstab_.setTolerance(1e-12);
-      bicgstab_.setMaxIterations(max_iterations);
-      bicgstab_.compute(A_);
-      dv_ = bicgstab_.solveWithGuess(b, dv_);
-      iterations = bicgstab_.iterations();
-      residual = bicgstab_.error();
-      converged = bicgstab_.info() == Eigen::Success;
+      krylov(bicgstab_);
     }
     const double krylov_residual = residual;
     Eigen::VectorXd& dv = dv_;
@@ -146,38 +144,126 @@ class ImplicitEuler : public Integrator {
 
   /// A = M - h D - h^2 K with the pinned rows and columns replaced by the identity, in the
   /// fixed sparsity pattern of A_: each entry the forces emit adds into its slot of A_'s
-  /// values (found once, by pattern()), so a step sorts and allocates nothing. The pattern
-  /// is rebuilt when the entries' positions or the pinned dofs change. Also kv_ = K v0.
-  /// One pass over each list of entries (they are large: 16 per spring): check the
-  /// position, add into the slot (and into K v0).
-  void assemble(Eigen::Index n, double h, const Eigen::Map<const Eigen::VectorXd>& v0) {
-    if (!same_size_and_pins(n)) pattern(n);
-    ksum_.setZero();
-    dsum_.setZero();
-    kv_.setZero();
-    if (!scatter(tx_, key_x_, slot_x_, ksum_, n, &v0) ||
-        !scatter(tv_, key_v_, slot_v_, dsum_, n, nullptr)) {
+  /// values (found once, by pattern()), so a step sorts and allocates nothing. Also
+  /// kv_ = K v0. The forces hand their entries (16 per spring, as 4 2x2 blocks) straight to
+  /// a Scatter, which checks each one's position against the pattern's and adds it into its
+  /// slot (and into K v0), in the order the forces emit them, each block's as its four
+  /// entries row by row: the sums are the same bits as if every entry had come alone. Only
+  /// if the positions or the pinned dofs differ from the pattern's (the first step, a force
+  /// whose entries change) are the Jacobians asked for again, kept (JacobianEntries), and
+  /// the pattern rebuilt from them.
+  void assemble(Simulation& sim, const State& s, Eigen::Index n, double h,
+                const Eigen::Map<const Eigen::VectorXd>& v0) {
+    auto zero = [&] {
+      ksum_.setZero();
+      dsum_.setZero();
+      kv_.setZero();
+    };
+    bool done = false;
+    if (same_size_and_pins(n)) {
+      zero();
+      Scatter x{&px_, ksum_.data(), kv_.data(), v0.data(), n};
+      Scatter v{&pv_, dsum_.data(), nullptr, nullptr, n};
+      sim.jacobians(s, x.sink(), v.sink());
+      done = x.complete() && v.complete();
+    }
+    if (!done) {
+      sim.jacobian_entries(s, ex_, ev_);
       pattern(n);
-      return assemble(n, h, v0);
+      zero();
+      Scatter x{&px_, ksum_.data(), kv_.data(), v0.data(), n};
+      Scatter v{&pv_, dsum_.data(), nullptr, nullptr, n};
+      x.feed(ex_);
+      v.feed(ev_);
+      ex_ = JacobianEntries();  // only the pattern's build needs them: free their memory
+      ev_ = JacobianEntries();
     }
     double* a = A_.valuePtr();
     for (Eigen::Index j = 0; j < A_.nonZeros(); ++j) a[j] = (-h * dsum_[j]) - (h * h) * ksum_[j];
     for (Eigen::Index i = 0; i < n; ++i) a[diag_slot_[i]] += m_[i] > 0.0 ? m_[i] : 1.0;
   }
 
-  /// Adds the entries into `sum` by slot (and K v0 into kv_ if v0); false, with nothing
-  /// finished, if an entry's position differs from the pattern's.
-  bool scatter(const std::vector<Eigen::Triplet<double>>& t, const std::vector<int64_t>& key,
-               const std::vector<int64_t>& slot, Eigen::VectorXd& sum, Eigen::Index n,
-               const Eigen::Map<const Eigen::VectorXd>* v0) {
-    for (std::size_t k = 0; k < t.size(); ++k) {
-      const Eigen::Triplet<double>& e = t[k];
-      if (key[k] != e.row() * n + e.col()) return false;
-      if (slot[k] >= 0) sum[slot[k]] += e.value();
-      if (v0) kv_[e.row()] += e.value() * (*v0)[e.col()];
+  /// Where one Jacobian's entries go in A_: per single entry its slot (-1: a pinned row or
+  /// column) and position row * n + col; per 2x2 block (i, j) the slots of its two columns'
+  /// first entries (rows 2i and 2i + 1 are adjacent slots of a column; -1: pinned) and its
+  /// particles (uint64 i << 32 | j), as pattern() found them, in the order they came.
+  struct Slots {
+    std::vector<int64_t> single, key, block;
+    std::vector<uint64_t> block_key;
+  };
+
+  /// A sink that adds each entry into `sum` by its slot in `p` (and K v0 into kv if kv),
+  /// checking its position; after the first entry that differs from the pattern's it adds
+  /// nothing more and complete() is false.
+  struct Scatter {
+    const Slots* p;
+    double* sum;
+    double* kv;
+    const double* v0;
+    Eigen::Index n;
+    std::size_t k = 0, b = 0;  ///< single entries, blocks so far
+    bool ok = true;
+
+    bool complete() const { return ok && k == p->single.size() && b == p->block_key.size(); }
+    void add(uint32_t row, uint32_t col, double value) {
+      if (!ok || k >= p->single.size() ||
+          p->key[k] != static_cast<int64_t>(row) * n + static_cast<int64_t>(col)) {
+        ok = false;
+        return;
+      }
+      if (p->single[k] >= 0) sum[p->single[k]] += value;
+      if (kv) kv[row] += value * v0[col];
+      ++k;
     }
-    return true;
-  }
+    void add_block(uint64_t key, const double* v) {  // v column-major
+      if (!ok || b >= p->block_key.size() || p->block_key[b] != key) {
+        ok = false;
+        return;
+      }
+      const int64_t s0 = p->block[2 * b], s1 = p->block[2 * b + 1];
+      if (s0 >= 0) {
+        sum[s0] += v[0];
+        sum[s0 + 1] += v[1];
+        sum[s1] += v[2];
+        sum[s1 + 1] += v[3];
+      }
+      if (kv) {
+        const std::size_t r = 2 * (key >> 32), c = 2 * (key & 0xffffffffu);
+        kv[r] += v[0] * v0[c];  // row by row, as four single entries would
+        kv[r] += v[2] * v0[c + 1];
+        kv[r + 1] += v[1] * v0[c];
+        kv[r + 1] += v[3] * v0[c + 1];
+      }
+      ++b;
+    }
+    /// Kept entries, in their order.
+    void feed(const JacobianEntries& t) {
+      std::size_t ks = 0, kb = 0;
+      for (const JacobianEntries::Run& run : t.runs) {
+        if (!run.block) {
+          for (; ks < run.end; ++ks) {
+            const Eigen::Triplet<double>& e = t.single[ks];
+            add(static_cast<uint32_t>(e.row()), static_cast<uint32_t>(e.col()), e.value());
+          }
+          continue;
+        }
+        for (; kb < run.end; ++kb) add_block(t.blocks[kb], t.values.data() + 4 * kb);
+      }
+    }
+    pinsim_triplet_sink sink() {
+      return {this,
+              [](void* c, uint32_t row, uint32_t col, double value) {
+                static_cast<Scatter*>(c)->add(row, col, value);
+              },
+              [](void* c, const uint32_t* particles, const double* v, uint64_t count) {
+                auto* self = static_cast<Scatter*>(c);
+                for (uint64_t q = 0; q < count; ++q)
+                  self->add_block(
+                      static_cast<uint64_t>(particles[2 * q]) << 32 | particles[2 * q + 1],
+                      v + 4 * q);
+              }};
+    }
+  };
 
   /// Whether A_ is symmetric up to rounding: |a_ij - a_ji| <= 1e-13 (a_ii a_jj)^1/2 for
   /// every off-diagonal slot, compared with the slot of its transpose entry (tslot_, found by
@@ -203,8 +289,7 @@ class ImplicitEuler : public Integrator {
   }
 
   bool same_size_and_pins(Eigen::Index n) const {
-    if (A_.rows() != n || slot_x_.size() != tx_.size() || slot_v_.size() != tv_.size())
-      return false;
+    if (A_.rows() != n) return false;
     for (Eigen::Index i = 0; i < n; ++i)
       if ((m_[i] > 0.0) != free_[static_cast<std::size_t>(i)]) return false;
     return true;
@@ -214,13 +299,23 @@ class ImplicitEuler : public Integrator {
     free_.assign(static_cast<std::size_t>(n), false);
     for (Eigen::Index i = 0; i < n; ++i) free_[static_cast<std::size_t>(i)] = m_[i] > 0.0;
     std::vector<Eigen::Triplet<double>> pat;
-    pat.reserve(tx_.size() + tv_.size() + static_cast<std::size_t>(n));
-    auto kept = [&](const Eigen::Triplet<double>& e) {
-      return m_[e.row()] > 0.0 && m_[e.col()] > 0.0;
+    pat.reserve(ex_.entries() + ev_.entries() + static_cast<std::size_t>(n));
+    auto kept = [&](Eigen::Index r, Eigen::Index c) { return m_[r] > 0.0 && m_[c] > 0.0; };
+    auto block_at = [](uint64_t key) {
+      return std::pair<Eigen::Index, Eigen::Index>(
+          static_cast<Eigen::Index>(2 * (key >> 32)),
+          static_cast<Eigen::Index>(2 * (key & 0xffffffffu)));
     };
-    for (const auto* t : {&tx_, &tv_})
-      for (const auto& e : *t)
-        if (kept(e)) pat.emplace_back(e.row(), e.col(), 0.0);
+    for (const JacobianEntries* t : {&ex_, &ev_}) {
+      for (const auto& e : t->single)
+        if (kept(e.row(), e.col())) pat.emplace_back(e.row(), e.col(), 0.0);
+      for (const uint64_t key : t->blocks) {
+        const auto [r, c] = block_at(key);
+        if (!kept(r, c)) continue;
+        for (int i = 0; i < 2; ++i)
+          for (int j = 0; j < 2; ++j) pat.emplace_back(r + i, c + j, 0.0);
+      }
+    }
     for (Eigen::Index i = 0; i < n; ++i) pat.emplace_back(i, i, 0.0);
     A_.resize(n, n);
     A_.setFromTriplets(pat.begin(), pat.end());
@@ -230,17 +325,25 @@ class ImplicitEuler : public Integrator {
       const int* last = A_.innerIndexPtr() + A_.outerIndexPtr()[c + 1];
       return std::lower_bound(first, last, static_cast<int>(r)) - A_.innerIndexPtr();
     };
-    auto slots = [&](const std::vector<Eigen::Triplet<double>>& t, std::vector<int64_t>& out,
-                     std::vector<int64_t>& key) {
-      out.resize(t.size());
-      key.resize(t.size());
-      for (std::size_t k = 0; k < t.size(); ++k) {
-        out[k] = kept(t[k]) ? slot(t[k].row(), t[k].col()) : -1;
-        key[k] = t[k].row() * n + t[k].col();
+    auto slots = [&](const JacobianEntries& t, Slots& out) {
+      out.single.resize(t.single.size());
+      out.key.resize(t.single.size());
+      for (std::size_t k = 0; k < t.single.size(); ++k) {
+        const auto& e = t.single[k];
+        out.single[k] = kept(e.row(), e.col()) ? slot(e.row(), e.col()) : -1;
+        out.key[k] = e.row() * n + e.col();
+      }
+      out.block_key = t.blocks;
+      out.block.resize(2 * t.blocks.size());
+      for (std::size_t b = 0; b < t.blocks.size(); ++b) {
+        const auto [r, c] = block_at(t.blocks[b]);
+        const bool in = kept(r, c);
+        out.block[2 * b] = in ? slot(r, c) : -1;  // (r + 1, c) is the next slot
+        out.block[2 * b + 1] = in ? slot(r, c + 1) : -1;
       }
     };
-    slots(tx_, slot_x_, key_x_);
-    slots(tv_, slot_v_, key_v_);
+    slots(ex_, px_);
+    slots(ev_, pv_);
     diag_slot_.resize(static_cast<std::size_t>(n));
     for (Eigen::Index i = 0; i < n; ++i) diag_slot_[static_cast<std::size_t>(i)] = slot(i, i);
     // The slot of each slot's transpose entry (the pattern need not be symmetric).
@@ -339,12 +442,13 @@ class ImplicitEuler : public Integrator {
            bicgstab_solves_ = 0;  ///< solves of a nonsymmetric A (BiCGSTAB, maybe then LU)
   double worst_residual_ = 0.0;
   Eigen::Matrix2Xd f_;
-  std::vector<Eigen::Triplet<double>> tx_, tv_;  ///< df/dx, df/dv entries (kept capacity)
-  Eigen::VectorXd m_, kv_, b_, r_;               ///< masses (0: pinned), K v_n, right side
-  // The pattern of A_: the slot of each entry in A_'s values (-1: a pinned row or column),
-  // the entries' positions (row * n + col) and free dofs it was built for, each diagonal's slot.
+  JacobianEntries ex_, ev_;         ///< df/dx, df/dv entries (kept capacity)
+  Eigen::VectorXd m_, kv_, b_, r_;  ///< masses (0: pinned), K v_n, right side
+  // The pattern of A_: where each entry goes in A_'s values and the entries' positions it
+  // was built for (Slots), the free dofs it was built for, each diagonal's slot.
   // tslot_: per slot of A_, the slot of its transpose entry (-1: not in the pattern).
-  std::vector<int64_t> slot_x_, slot_v_, key_x_, key_v_, diag_slot_, tslot_;
+  Slots px_, pv_;
+  std::vector<int64_t> diag_slot_, tslot_;
   std::vector<bool> free_;
   Eigen::VectorXd ksum_, dsum_;  ///< per slot: sum of df/dx, of df/dv
   Eigen::SparseMatrix<double> A_;

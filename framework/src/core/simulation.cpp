@@ -145,9 +145,22 @@ void Simulation::assemble_jacobians(const State& s, Eigen::SparseMatrix<double>&
 
 void Simulation::jacobian_triplets(const State& s, std::vector<Eigen::Triplet<double>>& tx,
                                    std::vector<Eigen::Triplet<double>>& tv) {
+  JacobianEntries ex, ev;
+  jacobian_entries(s, ex, ev);
   tx.clear();
   tv.clear();
-  const pinsim_triplet_sink sx{&tx, &add_triplet}, sv{&tv, &add_triplet};
+  ex.append_triplets(tx);
+  ev.append_triplets(tv);
+}
+
+void Simulation::jacobian_entries(const State& s, JacobianEntries& ex, JacobianEntries& ev) {
+  ex.clear();
+  ev.clear();
+  jacobians(s, ex.sink(), ev.sink());
+}
+
+void Simulation::jacobians(const State& s, const pinsim_triplet_sink& sx,
+                           const pinsim_triplet_sink& sv) {
   const pinsim_state_view view = s.view();
   if (fd_warned_.size() != forces_.size()) fd_warned_.assign(forces_.size(), false);
   for (std::size_t k = 0; k < forces_.size(); ++k) {
@@ -163,8 +176,21 @@ void Simulation::jacobian_triplets(const State& s, std::vector<Eigen::Triplet<do
             "force (2 force evaluations per degree of freedom per step)",
             f.context(), f.plugin().name(), !has_x ? "df/dx" : "df/dv");
       }
-      if (!has_x) fd_jacobian(f, s, false, tx);
-      if (!has_v && need_v) fd_jacobian(f, s, true, tv);
+      std::vector<Eigen::Triplet<double>> fd;
+      auto append = [&](const pinsim_triplet_sink& to) {
+        for (const auto& e : fd)
+          to.add(to.context, static_cast<uint32_t>(e.row()), static_cast<uint32_t>(e.col()),
+                 e.value());
+        fd.clear();
+      };
+      if (!has_x) {
+        fd_jacobian(f, s, false, fd);
+        append(sx);
+      }
+      if (!has_v && need_v) {
+        fd_jacobian(f, s, true, fd);
+        append(sv);
+      }
     }
   }
   ++jacobian_evals_;
@@ -177,7 +203,7 @@ int64_t Simulation::stiffest_force(const State& s, double h, double& weight) {
   for (std::size_t k = 0; k < forces_.size(); ++k) {
     const ForceInstance& f = *forces_[k];
     std::vector<Eigen::Triplet<double>> tx, tv;
-    const pinsim_triplet_sink sx{&tx, &add_triplet}, sv{&tv, &add_triplet};
+    const pinsim_triplet_sink sx{&tx, &add_triplet, nullptr}, sv{&tv, &add_triplet, nullptr};
     const bool has_x = f.provides_dfdx(), has_v = f.provides_dfdv();
     if (has_x || has_v) f.add_jacobians(view, has_x ? &sx : nullptr, has_v ? &sv : nullptr);
     if (!has_x) fd_jacobian(f, s, false, tx);

@@ -11,6 +11,7 @@
 #include <utility>
 #include <vector>
 
+#include "core/jacobian_entries.hpp"
 #include "core/plugin_instance.hpp"
 #include "core/plugin_loader.hpp"
 #include "core/scene.hpp"
@@ -102,6 +103,14 @@ class Simulation {
   /// is kept, so a caller that reuses them allocates nothing). Counts as one evaluation.
   void jacobian_triplets(const State& s, std::vector<Eigen::Triplet<double>>& tx,
                          std::vector<Eigen::Triplet<double>>& tv);
+  /// The same entries kept as the forces hand them over (single entries and 2x2 blocks, in
+  /// order; see JacobianEntries), for a caller that scatters them itself (implicit Euler):
+  /// cheaper than triplets, 1 position per block instead of 4. Counts as one evaluation.
+  void jacobian_entries(const State& s, JacobianEntries& ex, JacobianEntries& ev);
+  /// The same entries handed straight to the caller's sinks, in the same order (single
+  /// entries through add, blocks through add_blocks if the sink has it, else add). Counts as
+  /// one evaluation.
+  void jacobians(const State& s, const pinsim_triplet_sink& sx, const pinsim_triplet_sink& sv);
   /// The force whose Jacobian weighs most in implicit Euler's system M - h df/dv - h^2 df/dx
   /// at s: the largest (h^2 |df/dx| + h |df/dv|) / m over the entries of free rows (the
   /// square of h w for a spring), returned in `weight`; -1 if no force has a Jacobian entry.

@@ -197,7 +197,7 @@ class Worker {
         uint64_t count = 0;
         WireWriter entries;
         Triplets tx{&entries, 0, &count}, tv{&entries, 1, &count};
-        pinsim_triplet_sink sx{&tx, add_triplet}, sv{&tv, add_triplet};
+        pinsim_triplet_sink sx{&tx, add_triplet, nullptr}, sv{&tv, add_triplet, nullptr};
         const pinsim_state_view v = s.view();
         if (plugin_->table->force.add_jacobians(self, &v, want_x ? &sx : nullptr,
                                                 want_v ? &sv : nullptr, &err) != 0)

@@ -108,13 +108,15 @@ class Instance {
   MatrixXd jacobian(const Sample& s, int which) const {
     const auto m = static_cast<Eigen::Index>(2 * s.n());
     Dense d{MatrixXd::Zero(m, m), false};
-    pinsim_triplet_sink sink{&d, [](void* c, uint32_t row, uint32_t col, double v) {
+    pinsim_triplet_sink sink{&d,
+                             [](void* c, uint32_t row, uint32_t col, double v) {
                                auto* dd = static_cast<Dense*>(c);
                                if (row >= dd->m.rows() || col >= dd->m.cols())
                                  dd->out_of_range = true;
                                else
                                  dd->m(row, col) += v;
-                             }};
+                             },
+                             nullptr};
     const pinsim_state_view sv = s.view();
     call(which == 0 ? "add_jacobians(dfdx)" : "add_jacobians(dfdv)", [&](pinsim_error* e) {
       return t_->force.add_jacobians(self_, &sv, which == 0 ? &sink : nullptr,

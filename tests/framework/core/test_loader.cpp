@@ -56,16 +56,16 @@ TEST_CASE("loader: wrong ABI version names both versions") {
 }
 
 TEST_CASE("loader: a plugin built against ABI 1 (no backend input()) is refused") {
-  static_assert(PINSIM_ABI_VERSION == 3);
+  static_assert(PINSIM_ABI_VERSION == 4);
   REQUIRE_THROWS_WITH(load_plugin_file(fixtures / "libfixture_abi_v1.so"),
                       Contains("wrong plugin ABI version") && Contains("plugin has 1,") &&
-                          Contains("expects 3") && Contains("rebuild it against this SDK"));
+                          Contains("expects 4") && Contains("rebuild it against this SDK"));
 }
 
 TEST_CASE("loader: a plugin built against ABI 2 (no backend outline()) is refused") {
   REQUIRE_THROWS_WITH(load_plugin_file(fixtures / "libfixture_abi_v2.so"),
                       Contains("wrong plugin ABI version") && Contains("plugin has 2,") &&
-                          Contains("expects 3") && Contains("rebuild it against this SDK"));
+                          Contains("expects 4") && Contains("rebuild it against this SDK"));
 }
 
 TEST_CASE("loader: two libraries declaring one plugin name") {

@@ -73,3 +73,39 @@ TEST_CASE("the SDK's ConstraintSpring assembles the exact Jacobians of C = R - L
   CHECK((kx.block<2, 2>(0, 0) + K).norm() < 1e-12);
   CHECK((kx.block<2, 2>(0, 2) - K).norm() < 1e-12);
 }
+
+TEST_CASE("damped_spring's Jacobians through the 2x2 block sink match finite differences") {
+  // The SDK hands Triplets::add_block's blocks to the host in batches (add_blocks); a host
+  // sink without add_blocks gets the same entries one by one. Both must give the same
+  // matrices, and those must be the derivatives of the force: central differences
+  //   df/dq_j ~ (f(q + e e_j) - f(q - e e_j)) / (2 e), error O(e^2 f''') ~ 1e-9 here.
+  // Three particles, two springs sharing particle 1, stretched, turning and moving (so the
+  // damping's nonsymmetric term -kd J^T (H v)^T is in df/dx); 100 springs over the same
+  // particles make the batch (64 blocks) overflow and hand over more than once.
+  Particles s(3);
+  s.x.col(0) << 0.1, 0.2;
+  s.x.col(1) << 1.3, 0.4;
+  s.x.col(2) << 1.1, 1.9;
+  std::vector<uint32_t> elements;
+  for (int k = 0; k < 50; ++k) elements.insert(elements.end(), {0, 1, 1, 2});
+  Force f("damped_spring", {{"ks", 30.0}, {"kd", 1.5}, {"rest_length", 0.8}}, s, elements);
+  s.v.col(0) << 0.7, -0.4;
+  s.v.col(1) << -0.2, 0.9;
+  s.v.col(2) << 0.5, 0.3;
+  for (int which = 0; which < 2; ++which) {
+    const Eigen::MatrixXd blocks = f.jacobian(s, which), single = f.jacobian(s, which, false);
+    CHECK((blocks - single).cwiseAbs().maxCoeff() == 0.0);
+    Eigen::MatrixXd fd(6, 6);
+    const double e = 1e-6;
+    for (int j = 0; j < 6; ++j) {
+      Particles p = s, m = s;
+      (which == 0 ? p.x : p.v).data()[j] += e;
+      (which == 0 ? m.x : m.v).data()[j] -= e;
+      const Eigen::Matrix2Xd d = (f.force(p) - f.force(m)) / (2.0 * e);
+      fd.col(j) = Eigen::Map<const Eigen::VectorXd>(d.data(), 6);
+    }
+    INFO("which " << which << "\nblocks\n" << blocks << "\nfd\n" << fd);
+    CHECK(blocks.cwiseAbs().maxCoeff() > 1.0);  // not trivially zero
+    CHECK((blocks - fd).cwiseAbs().maxCoeff() < 1e-6 * blocks.cwiseAbs().maxCoeff());
+  }
+}

@@ -2,12 +2,15 @@
 // against the closed-form backward Euler step of one damped spring, its solver figures, a
 // forced fallback to sparse LU (reported, and giving the same answer), and a damped chain
 // whose system is nonsymmetric (BiCGSTAB, agreeing with sparse LU on A itself).
+#include <array>
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "core/integrators.hpp"
+#include "core/jacobian_entries.hpp"
 #include "core/scene.hpp"
 #include "core/simulation.hpp"
 #include "test_support.hpp"
@@ -143,4 +146,36 @@ TEST_CASE("implicit Euler: a damped chain's nonsymmetric system is solved, not i
       CHECK(lu.state().x(d, i) == Approx(it.state().x(d, i)).epsilon(1e-9).margin(1e-12));
       CHECK(lu.state().v(d, i) == Approx(it.state().v(d, i)).epsilon(1e-9).margin(1e-10));
     }
+}
+
+TEST_CASE("JacobianEntries keeps single entries and 2x2 blocks in the order they came") {
+  // abi.h: block k at particles (i, j) = (p[2k], p[2k + 1]) with values v[4k .. 4k + 3]
+  // column-major is the four entries (2i, 2j) v0, (2i, 2j + 1) v2, (2i + 1, 2j) v1,
+  // (2i + 1, 2j + 1) v3, row by row; implicit Euler sums them in that order.
+  JacobianEntries e;
+  const pinsim_triplet_sink sink = e.sink();
+  sink.add(sink.context, 0, 1, 1.5);
+  const uint32_t p[] = {2, 3, 0, 4};
+  const double v[] = {1, 2, 3, 4, 5, 6, 7, 8};
+  sink.add_blocks(sink.context, p, v, 1);
+  sink.add_blocks(sink.context, p + 2, v + 4, 1);
+  sink.add(sink.context, 9, 8, -2.0);
+  sink.add_blocks(sink.context, p, v, 0);  // nothing
+  REQUIRE(e.runs.size() == 3);
+  REQUIRE(e.entries() == 10);
+  std::vector<Eigen::Triplet<double>> t;
+  e.append_triplets(t);
+  const std::vector<std::array<double, 3>> want = {{0, 1, 1.5}, {4, 6, 1}, {4, 7, 3}, {5, 6, 2},
+                                                   {5, 7, 4},   {0, 8, 5}, {0, 9, 7}, {1, 8, 6},
+                                                   {1, 9, 8},   {9, 8, -2}};
+  REQUIRE(t.size() == want.size());
+  for (std::size_t k = 0; k < t.size(); ++k) {
+    INFO("entry " << k);
+    CHECK(t[k].row() == want[k][0]);
+    CHECK(t[k].col() == want[k][1]);
+    CHECK(t[k].value() == want[k][2]);
+  }
+  e.clear();
+  CHECK(e.entries() == 0);
+  CHECK(e.runs.empty());
 }
