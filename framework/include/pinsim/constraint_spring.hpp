@@ -19,7 +19,8 @@
 //   PINSIM_PLUGIN(MySpring)
 //
 // The base provides add_force, energy, add_dfdx and add_dfdv (and add_jacobians, both in one
-// pass, which the host calls), so the plugin gets the capabilities ENERGY | DFDX | DFDV. Jacobians (s = ks C + kd dC/dt, H = d2C/dp2):
+// pass, which the host calls), so the plugin gets the capabilities ENERGY | DFDX | DFDV.
+// Jacobians (s = ks C + kd dC/dt, H = d2C/dp2):
 //   df/dx = -ks J^T J - s H - kd J^T (H v)^T       (d(J v)/dx = H v)
 //   df/dv = -kd J^T J
 #pragma once
