@@ -1,6 +1,8 @@
 #include "gravity.hpp"
 
+#include <algorithm>
 #include <cmath>
+#include <pinsim/parallel.hpp>
 #include <string>
 
 namespace pinsim::plugins {
@@ -43,14 +45,28 @@ Gravity::Gravity(const CreateContext& ctx)
   const double eps = ctx.params.real("softening");
   eps2_ = eps * eps;
   particles_ = element_indices(ctx, 1);
+  increasing_ =
+      std::adjacent_find(particles_.begin(), particles_.end(),
+                         [](uint32_t a, uint32_t b) { return a >= b; }) == particles_.end();
 }
 
 void Gravity::add_force(const StateView& s, ForceOut& f) const {
   if (!pairwise_) {
-    for (uint32_t p : particles_) {
-      const double w = s.inv_mass[p];
-      if (w > 0.0) f.col(p) += g_ / w;
+    // Each listed particle's force alone: with every particle listed once (increasing, as
+    // "all" gives), in fixed chunks on threads (pinsim/parallel.hpp), the same bits.
+    auto add = [&](std::size_t b, std::size_t e) {
+      for (std::size_t a = b; a < e; ++a) {
+        const uint32_t p = particles_[a];
+        const double w = s.inv_mass[p];
+        if (w > 0.0) f.col(p) += g_ / w;
+      }
+    };
+    if (!increasing_) {
+      add(0, particles_.size());  // a particle listed twice gets g twice, one after the other
+      return;
     }
+    for_chunks(particles_.size(), kParticleChunk,
+               [&](std::size_t, std::size_t b, std::size_t e) { add(b, e); });
     return;
   }
   const double h = 0.5 * (alpha_ - 2.0);

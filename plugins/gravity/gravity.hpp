@@ -31,6 +31,7 @@ class Gravity {
   double alpha_ = -1.0;
   double eps2_ = 0.0;  ///< softening squared
   std::vector<uint32_t> particles_;
+  bool increasing_ = false;  ///< each particle listed once, in increasing order
 };
 
 }  // namespace pinsim::plugins

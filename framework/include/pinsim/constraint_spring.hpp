@@ -60,10 +60,14 @@ class ConstraintSpring {
     idx_ = element_indices(ctx, Arity);
   }
 
-  /// f += -J^T (ks C + kd J v) for every element. With threads (pinsim/parallel.hpp) and at
-  /// least kParallelElements elements: first each element's terms sc dC into a buffer, in
-  /// fixed chunks, then per particle the terms of its elements subtracted in element order,
-  /// the order of the serial loop, so f is the same to the bit for any thread count.
+  /// f += -J^T (ks C + kd J v) for every element. Serially: element after element, each
+  /// subtracting its terms from its particles' forces, so a particle's force gets its terms in
+  /// element order. With threads (pinsim/parallel.hpp) and at least kParallelElements
+  /// elements, in fixed chunks of elements: a particle whose elements all lie in one chunk
+  /// gets its terms from that chunk, directly, in element order; the terms of a particle
+  /// whose elements span chunks go to a buffer and are subtracted per particle in element
+  /// order after the chunks. Either way each particle's sum has the same operands in the
+  /// same order as the serial loop: f is the same to the bit for any thread count.
   void add_force(const StateView& s, ForceOut& f) const {
     const double* x = s.x.data();
     const double* v = s.v.data();
@@ -99,19 +103,33 @@ class ConstraintSpring {
       }
       return;
     }
-    build_incidence();
-    buffer_.resize(m * kDofs);
+    build_plan();
+    double* buf = buffer_.data();
     for_chunks(m, kChunk, [&](std::size_t, std::size_t b, std::size_t e) {
-      for (std::size_t i = b; i < e; ++i) terms(i, buffer_.data() + i * kDofs);
-    });
-    const std::size_t n = std::min<std::size_t>(s.n, first_.size() - 1);
-    for_chunks(n, kChunk, [&](std::size_t, std::size_t b, std::size_t e) {
-      for (std::size_t q = b; q < e; ++q)
-        for (uint32_t j = first_[q]; j < first_[q + 1]; ++j) {
-          const std::size_t slot = slots_[j];  // e * Arity + k, increasing
-          out[2 * q] -= buffer_[2 * slot];
-          out[2 * q + 1] -= buffer_[2 * slot + 1];
+      double t[kDofs];
+      for (std::size_t i = b; i < e; ++i) {
+        terms(i, t);
+        const uint32_t* id = idx_.data() + i * Arity;
+        const uint32_t* at = deferred_.data() + i * Arity;
+        for (uint32_t k = 0; k < Arity; ++k) {
+          if (at[k] == kDirect) {
+            out[2 * id[k]] -= t[2 * k];
+            out[2 * id[k] + 1] -= t[2 * k + 1];
+          } else {
+            buf[2 * at[k]] = t[2 * k];
+            buf[2 * at[k] + 1] = t[2 * k + 1];
+          }
         }
+      }
+    });
+    for_chunks(shared_.size(), kChunk, [&](std::size_t, std::size_t b, std::size_t e) {
+      for (std::size_t r = b; r < e; ++r) {
+        const uint32_t q = shared_[r];
+        for (uint32_t j = shared_first_[r]; j < shared_first_[r + 1]; ++j) {
+          out[2 * q] -= buf[2 * j];
+          out[2 * q + 1] -= buf[2 * j + 1];
+        }
+      }
     });
   }
 
@@ -222,20 +240,39 @@ class ConstraintSpring {
     return h;
   }
 
-  /// Items per chunk of the parallel add_force (any value gives the same bits).
-  static constexpr std::size_t kChunk = 4096;
+  /// Elements per chunk of the parallel add_force (any value gives the same bits; larger
+  /// chunks leave fewer particles whose elements span two chunks: on a grid sheet, about
+  /// one row of particles per chunk).
+  static constexpr std::size_t kChunk = 16384;
+  /// deferred_ value of a slot whose term goes straight into the particle's force.
+  static constexpr uint32_t kDirect = 0xffffffffu;
 
-  /// For each particle q, the slots e * Arity + k where it appears, in increasing order:
-  /// slots_[first_[q]] ... slots_[first_[q + 1] - 1] (counting sort over idx_, once).
-  void build_incidence() const {
-    if (!first_.empty()) return;
+  /// Once: for each slot j = e * Arity + k, kDirect if particle idx_[j] has all its slots in
+  /// element chunk e / kChunk, else the slot's place in buffer_, where each such shared
+  /// particle shared_[r] has its slots in increasing order at shared_first_[r] ..
+  /// shared_first_[r + 1] - 1 (a counting sort of the slots by particle).
+  void build_plan() const {
+    if (!shared_first_.empty()) return;
     const uint32_t n = idx_.empty() ? 0 : *std::max_element(idx_.begin(), idx_.end()) + 1;
-    first_.assign(static_cast<std::size_t>(n) + 1, 0);
-    for (uint32_t q : idx_) ++first_[q + 1];
-    for (std::size_t q = 0; q < n; ++q) first_[q + 1] += first_[q];
-    slots_.resize(idx_.size());
-    std::vector<uint32_t> at(first_.begin(), first_.end() - 1);
-    for (std::size_t j = 0; j < idx_.size(); ++j) slots_[at[idx_[j]]++] = static_cast<uint32_t>(j);
+    std::vector<uint32_t> first(static_cast<std::size_t>(n) + 1, 0);
+    for (uint32_t q : idx_) ++first[q + 1];
+    for (std::size_t q = 0; q < n; ++q) first[q + 1] += first[q];
+    std::vector<uint32_t> slots(idx_.size());
+    std::vector<uint32_t> at(first.begin(), first.end() - 1);
+    for (std::size_t j = 0; j < idx_.size(); ++j) slots[at[idx_[j]]++] = static_cast<uint32_t>(j);
+    const std::size_t chunk_slots = kChunk * Arity;
+    deferred_.assign(idx_.size(), kDirect);
+    shared_.clear();
+    shared_first_.assign(1, 0);
+    uint32_t placed = 0;
+    for (uint32_t q = 0; q < n; ++q) {
+      if (first[q] == first[q + 1]) continue;
+      if (slots[first[q]] / chunk_slots == slots[first[q + 1] - 1] / chunk_slots) continue;
+      for (uint32_t j = first[q]; j < first[q + 1]; ++j) deferred_[slots[j]] = placed++;
+      shared_.push_back(q);
+      shared_first_.push_back(placed);
+    }
+    buffer_.assign(2 * static_cast<std::size_t>(placed), 0.0);
   }
 
   void scatter(std::size_t e, const Hessian& k, Triplets& out) const {
@@ -248,9 +285,9 @@ class ConstraintSpring {
   double ks_;
   double kd_;
   std::vector<uint32_t> idx_;
-  // Scratch of the parallel add_force (the host calls one instance from one thread at a
-  // time; the chunks inside a call write disjoint parts).
-  mutable std::vector<uint32_t> first_, slots_;
+  // Plan and scratch of the parallel add_force (the host calls one instance from one thread
+  // at a time; the chunks inside a call write disjoint parts).
+  mutable std::vector<uint32_t> deferred_, shared_, shared_first_;
   mutable std::vector<double> buffer_;
 };
 

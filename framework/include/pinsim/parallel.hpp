@@ -37,6 +37,11 @@ inline int available_threads() {
 #endif
 }
 
+/// Items per chunk for loops that do a few arithmetic operations per particle (the
+/// integrators' updates, the step checks, uniform gravity): below two chunks such a loop runs
+/// serially, where a thread's start would cost more than the loop.
+inline constexpr std::size_t kParticleChunk = 8192;
+
 /// Number of chunks of `chunk` items in [0, n).
 inline std::size_t chunk_count(std::size_t n, std::size_t chunk) {
   return chunk == 0 ? 0 : (n + chunk - 1) / chunk;

@@ -32,7 +32,9 @@ class ExplicitEuler : public Integrator {
     sim.compute_forces(s, f_);
     accelerations(s, f_, a_);
     sim.drift(s, h);
-    s.v += h * a_;
+    per_particle(s.v.cols(), [&](Eigen::Index b, Eigen::Index n) {
+      s.v.middleCols(b, n) += h * a_.middleCols(b, n);
+    });
   }
 
  private:

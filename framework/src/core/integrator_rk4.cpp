@@ -19,34 +19,53 @@ class Rk4 : public Integrator {
  public:
   void step(Simulation& sim, double h) override {
     State& s = sim.state();
-    const Eigen::Matrix2Xd x0 = s.x, v0 = s.v;
+    const Eigen::Index n = s.x.cols();
+    // Every vector update below is per particle, in fixed chunks (the same bits for any
+    // thread count); B(m) is the chunk's columns of m.
+    auto each = [n](auto&& body) { per_particle(n, body); };
+    for (auto* m : {&x0_, &v0_, &v2_, &v3_, &vbar_, &dv_}) m->resize(2, n);
     stage_ = s;
+    each([&](Eigen::Index b, Eigen::Index k) {
+      x0_.middleCols(b, k) = s.x.middleCols(b, k);
+      v0_.middleCols(b, k) = s.v.middleCols(b, k);
+    });
 
     sim.compute_forces(s, f_);
     accelerations(s, f_, a1_);
 
     stage_.t = s.t + 0.5 * h;
-    stage_.x = x0 + 0.5 * h * v0;
-    stage_.v = v0 + 0.5 * h * a1_;
-    v2_ = stage_.v;
+    each([&](Eigen::Index b, Eigen::Index k) {
+      stage_.x.middleCols(b, k) = x0_.middleCols(b, k) + 0.5 * h * v0_.middleCols(b, k);
+      stage_.v.middleCols(b, k) = v0_.middleCols(b, k) + 0.5 * h * a1_.middleCols(b, k);
+      v2_.middleCols(b, k) = stage_.v.middleCols(b, k);
+    });
     sim.compute_forces(stage_, f_);
     accelerations(s, f_, a2_);
 
-    stage_.x = x0 + 0.5 * h * v2_;
-    stage_.v = v0 + 0.5 * h * a2_;
-    v3_ = stage_.v;
+    each([&](Eigen::Index b, Eigen::Index k) {
+      stage_.x.middleCols(b, k) = x0_.middleCols(b, k) + 0.5 * h * v2_.middleCols(b, k);
+      stage_.v.middleCols(b, k) = v0_.middleCols(b, k) + 0.5 * h * a2_.middleCols(b, k);
+      v3_.middleCols(b, k) = stage_.v.middleCols(b, k);
+    });
     sim.compute_forces(stage_, f_);
     accelerations(s, f_, a3_);
 
     stage_.t = s.t + h;
-    stage_.x = x0 + h * v3_;
-    stage_.v = v0 + h * a3_;
+    each([&](Eigen::Index b, Eigen::Index k) {
+      stage_.x.middleCols(b, k) = x0_.middleCols(b, k) + h * v3_.middleCols(b, k);
+      stage_.v.middleCols(b, k) = v0_.middleCols(b, k) + h * a3_.middleCols(b, k);
+    });
     sim.compute_forces(stage_, f_);
     accelerations(s, f_, a4_);
 
-    const Eigen::Matrix2Xd vbar = (v0 + 2.0 * v2_ + 2.0 * v3_ + stage_.v) / 6.0;
-    const Eigen::Matrix2Xd dv = (h / 6.0) * (a1_ + 2.0 * a2_ + 2.0 * a3_ + a4_);
-    s.v = vbar;
+    each([&](Eigen::Index b, Eigen::Index k) {
+      vbar_.middleCols(b, k) = (v0_.middleCols(b, k) + 2.0 * v2_.middleCols(b, k) +
+                                2.0 * v3_.middleCols(b, k) + stage_.v.middleCols(b, k)) /
+                               6.0;
+      dv_.middleCols(b, k) = (h / 6.0) * (a1_.middleCols(b, k) + 2.0 * a2_.middleCols(b, k) +
+                                          2.0 * a3_.middleCols(b, k) + a4_.middleCols(b, k));
+      s.v.middleCols(b, k) = vbar_.middleCols(b, k);
+    });
     const std::size_t first_event = sim.events().size();
     sim.drift(s, h);
     // For a constant force vbar = v_n + (h/2) a_n, Verlet's drift velocity, so a contact in
@@ -54,12 +73,15 @@ class Rk4 : public Integrator {
     // (exact for a constant force, O(h^2) per bounce otherwise).
     if (sim.events().size() > first_event)
       correct_impacts(s, sim.events(), first_event, s.t, 0.5 * h, a1_);
-    s.v += v0 + dv - vbar;  // the contacts' velocity change rides on top
+    // the contacts' velocity change rides on top
+    each([&](Eigen::Index b, Eigen::Index k) {
+      s.v.middleCols(b, k) += v0_.middleCols(b, k) + dv_.middleCols(b, k) - vbar_.middleCols(b, k);
+    });
   }
 
  private:
   State stage_;
-  Eigen::Matrix2Xd f_, a1_, a2_, a3_, a4_, v2_, v3_;
+  Eigen::Matrix2Xd f_, a1_, a2_, a3_, a4_, x0_, v0_, v2_, v3_, vbar_, dv_;
 };
 
 }  // namespace

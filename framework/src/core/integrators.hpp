@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <memory>
+#include <pinsim/parallel.hpp>
 #include <pinsim/state.hpp>
 #include <vector>
 
@@ -11,15 +12,30 @@
 
 namespace pinsim {
 
+/// Calls body(begin, count) for fixed chunks of kParticleChunk of the particles [0, n), on
+/// threads when there are several chunks (pinsim/parallel.hpp). For per-particle updates
+/// that read and write only their own particles: the bits do not depend on the chunks.
+template <class Body>
+void per_particle(Eigen::Index n, Body&& body) {
+  for_chunks(static_cast<std::size_t>(n), kParticleChunk,
+             [&](std::size_t, std::size_t b, std::size_t e) {
+               body(static_cast<Eigen::Index>(b), static_cast<Eigen::Index>(e - b));
+             });
+}
+
 /// a = M^-1 f per particle (pinned particles, inv_mass 0, get a = 0).
 inline void accelerations(const State& s, const Eigen::Matrix2Xd& f, Eigen::Matrix2Xd& a) {
   a.resize(2, s.x.cols());
-  for (Eigen::Index i = 0; i < s.x.cols(); ++i) a.col(i) = s.inv_mass[i] * f.col(i);
+  per_particle(s.x.cols(), [&](Eigen::Index b, Eigen::Index n) {
+    for (Eigen::Index i = b; i < b + n; ++i) a.col(i) = s.inv_mass[i] * f.col(i);
+  });
 }
 
 /// v += h M^-1 f, per particle (pinned particles have inv_mass 0 and keep their velocity).
 inline void kick(State& s, const Eigen::Matrix2Xd& f, double h) {
-  for (Eigen::Index i = 0; i < s.x.cols(); ++i) s.v.col(i) += (h * s.inv_mass[i]) * f.col(i);
+  per_particle(s.x.cols(), [&](Eigen::Index b, Eigen::Index n) {
+    for (Eigen::Index i = b; i < b + n; ++i) s.v.col(i) += (h * s.inv_mass[i]) * f.col(i);
+  });
 }
 
 /// Impact correction (impact_correction.cpp). Corrects the impulses of the obstacle

@@ -1,6 +1,7 @@
 #include "core/step_checks.hpp"
 
 #include <algorithm>
+#include <pinsim/parallel.hpp>
 
 namespace pinsim {
 
@@ -69,33 +70,63 @@ StepFinding StepChecks::check(const State& s) {
   const double* kp = k_.data();
   double* kn = k_next_.data();
   // 0 * y is 0 for finite y and NaN for an infinity or a NaN, so the sum is NaN exactly when
-  // some coordinate is not finite (one pass, no branch).
-  double poison = 0.0;
+  // some coordinate is not finite (one pass, no branch). The particles run in fixed chunks
+  // (pinsim/parallel.hpp), each summing into its own slot; the slots are then combined in
+  // chunk order, so the sums do not depend on the thread count (with one chunk, up to
+  // kParticleChunk particles, they are the plain serial sums).
+  const std::size_t chunks = chunk_count(static_cast<std::size_t>(n), kParticleChunk);
+  parts_.assign(chunks, Part{});
   if (growth_ > 0.0) {
     const double g = growth_, gs = growth_ * scale_;
-    double k_sum = 0.0, kf_sum = 0.0;
-    int over = 0;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const double vx = v[2 * i], vy = v[2 * i + 1];
-      poison += 0.0 * x[2 * i] + 0.0 * x[2 * i + 1] + 0.0 * vx + 0.0 * vy;
-      const double fx = vx - (vout[2 * i] - vin[2 * i]),
-                   fy = vy - (vout[2 * i + 1] - vin[2 * i + 1]);
-      const double k = hm[i] * (vx * vx + vy * vy), kf = hm[i] * (fx * fx + fy * fy);
-      over |= static_cast<int>(kf > g * kp[i] + gs);
-      k_sum += k;
-      kf_sum += kf;
-      kn[i] = k;
+    for_chunks(static_cast<std::size_t>(n), kParticleChunk,
+               [&](std::size_t c, std::size_t b, std::size_t e) {
+                 Part p;
+                 for (std::size_t i = b; i < e; ++i) {
+                   const double vx = v[2 * i], vy = v[2 * i + 1];
+                   p.poison += 0.0 * x[2 * i] + 0.0 * x[2 * i + 1] + 0.0 * vx + 0.0 * vy;
+                   const double fx = vx - (vout[2 * i] - vin[2 * i]),
+                                fy = vy - (vout[2 * i + 1] - vin[2 * i + 1]);
+                   const double k = hm[i] * (vx * vx + vy * vy), kf = hm[i] * (fx * fx + fy * fy);
+                   p.over |= static_cast<int>(kf > g * kp[i] + gs);
+                   p.k_sum += k;
+                   p.kf_sum += kf;
+                   kn[i] = k;
+                 }
+                 parts_[c] = p;
+               });
+    Part all;
+    for (const Part& p : parts_) {
+      all.poison += p.poison;
+      all.over |= p.over;
+      all.k_sum += p.k_sum;
+      all.kf_sum += p.kf_sum;
     }
-    if (!(poison == 0.0)) return non_finite(s);
-    if (over != 0 && steps_ > 0) return growth(s);
-    scale_ = std::max({scale_, k_sum, kf_sum});
+    if (!(all.poison == 0.0)) return non_finite(s);
+    if (all.over != 0 && steps_ > 0) return growth(s);
+    scale_ = std::max({scale_, all.k_sum, all.kf_sum});
     k_.swap(k_next_);
   } else {
-    for (Eigen::Index i = 0; i < 2 * n; ++i) poison += 0.0 * x[i] + 0.0 * v[i];
+    for_chunks(static_cast<std::size_t>(n), kParticleChunk,
+               [&](std::size_t c, std::size_t b, std::size_t e) {
+                 double poison = 0.0;
+                 for (std::size_t i = 2 * b; i < 2 * e; ++i) poison += 0.0 * x[i] + 0.0 * v[i];
+                 parts_[c].poison = poison;
+               });
+    double poison = 0.0;
+    for (const Part& p : parts_) poison += p.poison;
     if (!(poison == 0.0)) return non_finite(s);
   }
   ++steps_;
   return {};
+}
+
+void StepChecks::copy(const Eigen::Matrix2Xd& from, Eigen::Matrix2Xd& to) {
+  to.resize(2, from.cols());
+  for_chunks(static_cast<std::size_t>(from.cols()), kParticleChunk,
+             [&](std::size_t, std::size_t b, std::size_t e) {
+               const auto i = static_cast<Eigen::Index>(b), k = static_cast<Eigen::Index>(e - b);
+               to.middleCols(i, k) = from.middleCols(i, k);
+             });
 }
 
 namespace {

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <pinsim/state.hpp>
+#include <vector>
 
 namespace pinsim {
 
@@ -34,9 +35,9 @@ class StepChecks {
   /// `scale0`: the initial energy scale, K^0 + sum |U_f(x^0)|; `growth`: G (0 = off).
   void start(const State& s, double scale0, double growth);
   /// Around the backend's drift: the velocities entering and leaving it.
-  void before_drift(const State& s) { v_in_ = s.v; }
+  void before_drift(const State& s) { copy(s.v, v_in_); }
   void after_drift(const State& s) {
-    v_out_ = s.v;
+    copy(s.v, v_out_);
     drifted_ = true;
   }
   /// After the step: finite x and v, then the growth bound. Only reads the state; on a
@@ -46,6 +47,15 @@ class StepChecks {
  private:
   StepFinding non_finite(const State& s) const;
   StepFinding growth(const State& s) const;
+  /// to = from, in fixed chunks of particles (on threads for large states).
+  static void copy(const Eigen::Matrix2Xd& from, Eigen::Matrix2Xd& to);
+
+  /// One chunk's share of check()'s sums (combined in chunk order).
+  struct Part {
+    double poison = 0.0, k_sum = 0.0, kf_sum = 0.0;
+    int over = 0;
+  };
+  std::vector<Part> parts_;
 
   double growth_ = 0.0;
   double scale_ = 0.0;  ///< S_n

@@ -7,11 +7,20 @@
 // order; the SDK's ConstraintSpring computes each element's terms apart and subtracts them
 // per particle in element order, the order of the serial loop. No floating-point sum is
 // regrouped, so every double is computed by the same operations for any N.
+#include <Eigen/Core>
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <fstream>
+#include <memory>
 #include <nlohmann/json.hpp>
+#include <pinsim/parallel.hpp>
 #include <string>
+#include <vector>
+#ifdef PINSIM_WITH_TBB
+#include <tbb/global_control.h>
+#endif
 
+#include "core/step_checks.hpp"
 #include "test_support.hpp"
 
 using nlohmann::json;
@@ -50,19 +59,23 @@ json many_balls(bool contacts) {
   return s;
 }
 
-/// A 70 x 70 grid of damped springs (9660 edges + 9522 shear springs, above ConstraintSpring's
-/// parallel threshold of 8192) dropping onto a floor.
+/// A 100 x 100 grid of damped springs dropping onto a floor: 19800 edges and 19602 shear
+/// springs, each force above ConstraintSpring's parallel threshold (8192) and two chunks of
+/// 16384 elements long, so some particles' terms are deferred (their elements span both
+/// chunks); 10000 particles, two chunks of the per-particle loops (kParticleChunk 8192).
+/// The rest lengths exceed the grid's spacings, so every spring pushes from the first step
+/// and each particle's sum of terms depends on their order.
 json spring_grid() {
   return {{"name", "spring_grid"},
-          {"time", {{"dt", 0.0005}, {"duration", 0.1}}},
+          {"time", {{"dt", 0.0005}, {"duration", 0.06}}},
           {"integrator", "symplectic_euler"},
           {"backend", {{"name", "sdf"}}},
           {"bodies",
            {{{"type", "grid_blob"},
              {"name", "sheet"},
-             {"origin", {-0.35, 0.05}},
-             {"nx", 70},
-             {"ny", 70},
+             {"origin", {-0.5, 0.05}},
+             {"nx", 100},
+             {"ny", 100},
              {"spacing", 0.01},
              {"mass", 0.001},
              {"radius", 0.003},
@@ -70,10 +83,10 @@ json spring_grid() {
           {"forces",
            {{{"type", "gravity"}, {"params", {{"g", {0.0, -9.81}}}}},
             {{"type", "damped_spring"},
-             {"params", {{"ks", 50.0}, {"kd", 0.01}}},
+             {"params", {{"ks", 50.0}, {"kd", 0.01}, {"rest_length", 0.0105}}},
              {"elements", {{"body", "sheet"}, {"set", "edges"}}}},
             {{"type", "damped_spring"},
-             {"params", {{"ks", 20.0}, {"kd", 0.01}}},
+             {"params", {{"ks", 20.0}, {"kd", 0.01}, {"rest_length", 0.015}}},
              {"elements", {{"body", "sheet"}, {"set", "shear"}}}}}},
           {"obstacles",
            {{{"id", "floor"},
@@ -140,10 +153,22 @@ TEST_CASE("threads: 900 balls with ball contacts, 1, 2 and 3 threads alike") {
   same_for_1_2_3(scene);
 }
 
-TEST_CASE("threads: a grid of 19182 damped springs, 1, 2 and 3 threads alike") {
+TEST_CASE("threads: a grid of 39402 damped springs, 1, 2 and 3 threads alike") {
   const std::string scene = write_scene(spring_grid(), "springs");
   same_for_1_2_3(scene);
-  same_for_1_2_3(scene, "--integrator implicit_euler --set time.duration=0.01");
+  // the sheet does reach the floor within the run
+  CHECK(run(scene, 2).summary["contacts"].get<uint64_t>() > 0);
+}
+
+// Every integrator's per-particle updates (kick, accelerations, RK4's stage and final
+// combinations, explicit Euler's kick after the drift) run in chunks; each must give the
+// serial bits. Verlet's predictor kick runs too (damped springs are velocity dependent).
+TEST_CASE("threads: the spring grid with every integrator, 1, 2 and 3 threads alike") {
+  const std::string scene = write_scene(spring_grid(), "springs");
+  for (const char* integrator : {"velocity_verlet", "rk4", "explicit_euler", "implicit_euler"}) {
+    INFO(integrator);
+    same_for_1_2_3(scene, std::string("--integrator ") + integrator + " --set time.duration=0.01");
+  }
 }
 
 TEST_CASE("threads: the Box2D backend runs with threads (serially inside), same bits") {
@@ -157,5 +182,62 @@ TEST_CASE("threads: --threads outside 1..256 is refused with exit 2") {
                                             std::string(bad));
     CHECK(r.code == 2);
     CHECK_THAT(r.output, Catch::Matchers::Contains("--threads"));
+  }
+}
+
+// StepChecks sums the kinetic energies K_i = m_i |v_i|^2 / 2 per fixed chunk of
+// kParticleChunk particles and adds the chunk sums in chunk order (step_checks.cpp); the
+// largest sum so far is the scale S_n of the growth bound, reported with a growth finding.
+// The sum is computed here the same way and must match to the bit for 1, 2 and 3 threads;
+// the data are chosen so that summing in another order (one serial sum) gives other bits.
+TEST_CASE("threads: the step check's energy sums are combined in chunk order") {
+  const Eigen::Index n = 20000;  // three chunks of 8192
+  pinsim::State s;
+  s.x = Eigen::Matrix2Xd::Zero(2, n);
+  s.v.resize(2, n);
+  s.inv_mass.resize(n);
+  s.radius = Eigen::VectorXd::Constant(n, 0.01);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    // a small middle chunk sum: adding the chunk sums in another order rounds differently
+    const double scale[] = {1.0, 1e-3, 1.0};
+    const double a = scale[static_cast<std::size_t>(i) / pinsim::kParticleChunk];
+    s.v(0, i) = a * std::sin(0.37 * static_cast<double>(i)) * (1.0 + static_cast<double>(i % 13));
+    s.v(1, i) = a * std::cos(0.11 * static_cast<double>(i)) * 1e-3 * static_cast<double>(i % 101);
+    s.inv_mass[i] = 1.0 / (1.0 + static_cast<double>(i % 7));
+  }
+  double chunked = 0.0, serial = 0.0;
+  std::vector<double> parts;
+  for (std::size_t c = 0; c < pinsim::chunk_count(n, pinsim::kParticleChunk); ++c) {
+    double part = 0.0;
+    const std::size_t end = std::min<std::size_t>(n, (c + 1) * pinsim::kParticleChunk);
+    for (std::size_t i = c * pinsim::kParticleChunk; i < end; ++i) {
+      const auto j = static_cast<Eigen::Index>(i);
+      const double vx = s.v(0, j), vy = s.v(1, j);
+      const double k = (0.5 / s.inv_mass[j]) * (vx * vx + vy * vy);
+      part += k;
+      serial += k;
+    }
+    chunked += part;
+    parts.push_back(part);
+  }
+  REQUIRE(parts.size() == 3);
+  // the order matters for these data: one serial sum, or the chunks added backwards, differ
+  REQUIRE(chunked != serial);
+  REQUIRE(chunked != (parts[2] + parts[1]) + parts[0]);
+  for (int threads : {1, 2, 3}) {
+    INFO(threads << " threads");
+#ifdef PINSIM_WITH_TBB
+    tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                              static_cast<std::size_t>(threads));
+#endif
+    pinsim::StepChecks checks;
+    checks.start(s, 1e-300, 32.0);
+    REQUIRE(!checks.check(s));  // the first step only records S = the sum
+    pinsim::State burst = s;
+    burst.v.col(7) *= 1e4;  // K_7 x 1e8: past G (K + S)
+    const pinsim::StepFinding found = checks.check(burst);
+    REQUIRE(found.what == pinsim::StepFinding::What::Growth);
+    CHECK(found.particle == 7);
+    CHECK(found.scale == chunked);
   }
 }
