@@ -7,6 +7,9 @@
 // one force evaluation and one drift alone (wall us), state hash (equal across thread
 // counts, else the line says DIFFERS and the program exits 1).
 //
+// A line "# load average: ..." (/proc/loadavg) follows each scene: on a shared machine the
+// ratios mean little when the load exceeds the cores.
+//
 // Usage: pinsim_bench_threads [threads=hardware] [repeats=3] [scale=1] [only=SCENE]
 //   scale < 1 shrinks every step count (a quick look); `only` runs one scene.
 #include <Eigen/Core>
@@ -15,6 +18,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
+#include <fstream>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <thread>
@@ -27,6 +31,14 @@
 namespace {
 
 using nlohmann::json;
+
+/// The first three fields of /proc/loadavg (1, 5, 15 minutes), or "unknown".
+std::string load_average() {
+  std::ifstream in("/proc/loadavg");
+  std::string a, b, c;
+  if (!(in >> a >> b >> c)) return "unknown";
+  return a + " " + b + " " + c;
+}
 
 struct Case {
   std::string name;
@@ -175,6 +187,7 @@ int main(int argc, char** argv) {
       std::fflush(stdout);
       if (n == 1) break;
     }
+    std::printf("# load average: %s\n", load_average().c_str());
   }
   return status;
 }

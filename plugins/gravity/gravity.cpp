@@ -61,7 +61,7 @@ void Gravity::add_force(const StateView& s, ForceOut& f) const {
         if (w > 0.0) f.col(p) += g_ / w;
       }
     };
-    if (!increasing_) {
+    if (!increasing_ || particles_.size() <= kParticleChunk) {
       add(0, particles_.size());  // a particle listed twice gets g twice, one after the other
       return;
     }

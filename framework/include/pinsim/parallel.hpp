@@ -55,6 +55,10 @@ inline std::size_t chunk_count(std::size_t n, std::size_t chunk) {
 /// one of them), after the running chunks end.
 template <class Body>
 void for_chunks(std::size_t n, std::size_t chunk, Body&& body) {
+  if (n <= chunk) {  // one chunk (or none): the serial loop, nothing else on the way
+    if (n > 0) body(std::size_t{0}, std::size_t{0}, n);
+    return;
+  }
   const std::size_t chunks = chunk_count(n, chunk);
   auto run = [&](std::size_t c) { body(c, c * chunk, std::min(n, (c + 1) * chunk)); };
 #ifdef PINSIM_WITH_TBB

@@ -120,11 +120,20 @@ void Simulation::set_input(const std::string& name, bool pressed) {
 
 void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f) {
   const Eigen::Index n = s.x.cols();
-  f.resize(2, n);
-  per_particle(n, [&](Eigen::Index b, Eigen::Index k) { f.middleCols(b, k).setZero(); });
+  const bool one_chunk = n <= static_cast<Eigen::Index>(kParticleChunk);
+  if (one_chunk) {  // the serial code, as before threads (a one-ball step is 0.2 us)
+    f.setZero(2, n);
+  } else {
+    f.resize(2, n);
+    per_particle(n, [&](Eigen::Index b, Eigen::Index k) { f.middleCols(b, k).setZero(); });
+  }
   const pinsim_state_view view = s.view();
   for (const auto& force : forces_) force->add_force(view, f.data());
   ++force_evals_;
+  if (one_chunk) {
+    if (!f.allFinite()) check_finite_forces(s, f);
+    return;
+  }
   // whether every force is finite, per chunk (a flag: no order to keep); the search for the
   // culprit runs only when one is not
   std::atomic<bool> non_finite{false};

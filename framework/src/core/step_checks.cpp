@@ -74,26 +74,13 @@ StepFinding StepChecks::check(const State& s) {
   // (pinsim/parallel.hpp), each summing into its own slot; the slots are then combined in
   // chunk order, so the sums do not depend on the thread count (with one chunk, up to
   // kParticleChunk particles, they are the plain serial sums).
-  const std::size_t chunks = chunk_count(static_cast<std::size_t>(n), kParticleChunk);
-  parts_.assign(chunks, Part{});
-  if (growth_ > 0.0) {
-    const double g = growth_, gs = growth_ * scale_;
-    for_chunks(static_cast<std::size_t>(n), kParticleChunk,
-               [&](std::size_t c, std::size_t b, std::size_t e) {
-                 Part p;
-                 for (std::size_t i = b; i < e; ++i) {
-                   const double vx = v[2 * i], vy = v[2 * i + 1];
-                   p.poison += 0.0 * x[2 * i] + 0.0 * x[2 * i + 1] + 0.0 * vx + 0.0 * vy;
-                   const double fx = vx - (vout[2 * i] - vin[2 * i]),
-                                fy = vy - (vout[2 * i + 1] - vin[2 * i + 1]);
-                   const double k = hm[i] * (vx * vx + vy * vy), kf = hm[i] * (fx * fx + fy * fy);
-                   p.over |= static_cast<int>(kf > g * kp[i] + gs);
-                   p.k_sum += k;
-                   p.kf_sum += kf;
-                   kn[i] = k;
-                 }
-                 parts_[c] = p;
-               });
+  const auto total = static_cast<std::size_t>(n);
+  // sum(b, e) over the particles [b, e), all the chunks' sums added in chunk order
+  auto chunked = [&](auto&& sum) {
+    if (total <= kParticleChunk) return sum(std::size_t{0}, total);  // the serial loop
+    parts_.assign(chunk_count(total, kParticleChunk), Part{});
+    for_chunks(total, kParticleChunk,
+               [&](std::size_t c, std::size_t b, std::size_t e) { parts_[c] = sum(b, e); });
     Part all;
     for (const Part& p : parts_) {
       all.poison += p.poison;
@@ -101,26 +88,42 @@ StepFinding StepChecks::check(const State& s) {
       all.k_sum += p.k_sum;
       all.kf_sum += p.kf_sum;
     }
+    return all;
+  };
+  if (growth_ > 0.0) {
+    const double g = growth_, gs = growth_ * scale_;
+    const Part all = chunked([&](std::size_t b, std::size_t e) {
+      Part p;
+      for (std::size_t i = b; i < e; ++i) {
+        const double vx = v[2 * i], vy = v[2 * i + 1];
+        p.poison += 0.0 * x[2 * i] + 0.0 * x[2 * i + 1] + 0.0 * vx + 0.0 * vy;
+        const double fx = vx - (vout[2 * i] - vin[2 * i]),
+                     fy = vy - (vout[2 * i + 1] - vin[2 * i + 1]);
+        const double k = hm[i] * (vx * vx + vy * vy), kf = hm[i] * (fx * fx + fy * fy);
+        p.over |= static_cast<int>(kf > g * kp[i] + gs);
+        p.k_sum += k;
+        p.kf_sum += kf;
+        kn[i] = k;
+      }
+      return p;
+    });
     if (!(all.poison == 0.0)) return non_finite(s);
     if (all.over != 0 && steps_ > 0) return growth(s);
     scale_ = std::max({scale_, all.k_sum, all.kf_sum});
     k_.swap(k_next_);
   } else {
-    for_chunks(static_cast<std::size_t>(n), kParticleChunk,
-               [&](std::size_t c, std::size_t b, std::size_t e) {
-                 double poison = 0.0;
-                 for (std::size_t i = 2 * b; i < 2 * e; ++i) poison += 0.0 * x[i] + 0.0 * v[i];
-                 parts_[c].poison = poison;
-               });
-    double poison = 0.0;
-    for (const Part& p : parts_) poison += p.poison;
-    if (!(poison == 0.0)) return non_finite(s);
+    const Part all = chunked([&](std::size_t b, std::size_t e) {
+      Part p;
+      for (std::size_t i = 2 * b; i < 2 * e; ++i) p.poison += 0.0 * x[i] + 0.0 * v[i];
+      return p;
+    });
+    if (!(all.poison == 0.0)) return non_finite(s);
   }
   ++steps_;
   return {};
 }
 
-void StepChecks::copy(const Eigen::Matrix2Xd& from, Eigen::Matrix2Xd& to) {
+void StepChecks::copy_chunks(const Eigen::Matrix2Xd& from, Eigen::Matrix2Xd& to) {
   to.resize(2, from.cols());
   for_chunks(static_cast<std::size_t>(from.cols()), kParticleChunk,
              [&](std::size_t, std::size_t b, std::size_t e) {

@@ -4,6 +4,7 @@
 
 #include <Eigen/Core>
 #include <cstdint>
+#include <pinsim/parallel.hpp>
 #include <pinsim/state.hpp>
 #include <vector>
 
@@ -48,7 +49,13 @@ class StepChecks {
   StepFinding non_finite(const State& s) const;
   StepFinding growth(const State& s) const;
   /// to = from, in fixed chunks of particles (on threads for large states).
-  static void copy(const Eigen::Matrix2Xd& from, Eigen::Matrix2Xd& to);
+  static void copy(const Eigen::Matrix2Xd& from, Eigen::Matrix2Xd& to) {
+    if (from.cols() <= static_cast<Eigen::Index>(kParticleChunk))
+      to = from;
+    else
+      copy_chunks(from, to);
+  }
+  static void copy_chunks(const Eigen::Matrix2Xd& from, Eigen::Matrix2Xd& to);
 
   /// One chunk's share of check()'s sums (combined in chunk order).
   struct Part {
