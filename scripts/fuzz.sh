@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
-# Builds the `fuzz` preset (clang, libFuzzer + ASan + UBSan) and fuzzes each target for a
-# fixed time from a fixed seed, starting from the seed corpus (tests/fuzz/corpus/TARGET, the
-# regressions in tests/fuzz/regressions/TARGET and the shipped configs). See docs/fuzzing.md.
+# Builds the libFuzzer programs of the `asan` preset (clang, ASan + UBSan; the `fuzz` build
+# preset is those targets of build/asan) and fuzzes each target for a fixed time from a fixed
+# seed, starting from the seed corpus (tests/fuzz/corpus/TARGET, the regressions in
+# tests/fuzz/regressions/TARGET and the shipped configs). See docs/fuzzing.md.
 #   scripts/fuzz.sh [--time SECONDS_PER_TARGET] [--corpus DIR] [--seed N] [TARGET...]
 # --corpus DIR keeps what the fuzzer learns in DIR/TARGET between runs (default: a fresh
 # temporary folder, so CI's run is reproducible). A crash, hang, leak or sanitizer report
-# fails the script; the input is saved as build/fuzz/findings/TARGET/crash-..., and
+# fails the script; the input is saved as build/asan/findings/TARGET/crash-..., and
 # docs/fuzzing.md says how to add it to the regression corpus.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -19,14 +20,14 @@ while (($#)); do
     --time) seconds="$2"; shift 2 ;;
     --corpus) corpus="$2"; shift 2 ;;
     --seed) seed="$2"; shift 2 ;;
-    -h|--help) sed -n '2,9p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,10p' "$0"; exit 0 ;;
     *) targets+=("$1"); shift ;;
   esac
 done
 ((${#targets[@]})) || targets=(scene set sweep_config rubric)
 
 jobs=$(nproc 2>/dev/null || echo 2)
-cmake --preset fuzz >/dev/null
+cmake --preset asan >/dev/null
 cmake --build --preset fuzz -j "$jobs"
 
 tmp=$(mktemp -d)
@@ -47,16 +48,16 @@ max_len() { [ "$1" = set ] && echo 1024 || echo 16384; }
 
 failed=()
 for t in "${targets[@]}"; do
-  mkdir -p "$corpus/$t" "build/fuzz/findings/$t"
+  mkdir -p "$corpus/$t" "build/asan/findings/$t"
   dirs=("$corpus/$t")
   for d in "tests/fuzz/corpus/$t" "tests/fuzz/regressions/$t" $(seeds "$t"); do
     [ -d "$d" ] && dirs+=("$d")
   done
   echo "fuzz: $t for ${seconds}s (seed $seed)"
   # -timeout: seconds per input (a hang); -rss_limit_mb: the memory an input may take.
-  if ! ASAN_OPTIONS="${ASAN_OPTIONS:-}:detect_leaks=1" build/fuzz/tests/fuzz/fuzz_"$t" \
+  if ! ASAN_OPTIONS="${ASAN_OPTIONS:-}:detect_leaks=1" build/asan/tests/fuzz/fuzz_"$t" \
       -seed="$seed" -max_total_time="$seconds" -max_len="$(max_len "$t")" -timeout=10 \
-      -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="build/fuzz/findings/$t/" \
+      -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="build/asan/findings/$t/" \
       "${dirs[@]}" >"$tmp/$t.log" 2>&1; then
     failed+=("$t")
     tail -n 60 "$tmp/$t.log"
@@ -64,7 +65,7 @@ for t in "${targets[@]}"; do
   grep -E '^(stat::number_of_executed_units|stat::peak_rss_mb|#[0-9]+ +DONE)' "$tmp/$t.log" || true
 done
 if ((${#failed[@]})); then
-  echo "fuzz: FAILED: ${failed[*]} (inputs in build/fuzz/findings/; docs/fuzzing.md)" >&2
+  echo "fuzz: FAILED: ${failed[*]} (inputs in build/asan/findings/; docs/fuzzing.md)" >&2
   exit 1
 fi
 echo "fuzz: no findings"
