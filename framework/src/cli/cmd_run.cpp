@@ -9,6 +9,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "core/crash_summary.hpp"
 #include "core/format.hpp"
 #include "core/runner.hpp"
 #include "core/stop_signals.hpp"
@@ -27,6 +28,11 @@ struct RunArgs {
 };
 
 int run_command(const RunArgs& a) {
+  // A crash before run_scene arms the crash summary (a plugin that crashes while it is
+  // loaded or created), or in a run without --out, leaves no summary.json: stderr says so.
+  set_crash_notice(a.out.empty()
+                       ? "(a run without --out writes no summary.json)"
+                       : "before the run's output folder was prepared: it has no summary.json");
   Scene scene = load_scene_or_default(a.scene, with_backend(a.scene, a.backend, a.set));
   PluginLoader loader(plugin_search_dirs(scene.plugin_path));
   RunSettings rs;

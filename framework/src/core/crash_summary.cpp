@@ -32,7 +32,9 @@ struct Armed {
 };
 Armed* g_armed = nullptr;
 std::atomic<uint64_t> g_step{0};
+std::atomic<const char*> g_notice{nullptr};  // set_crash_notice's line
 static_assert(std::atomic<uint64_t>::is_always_lock_free, "the signal handler reads it");
+static_assert(std::atomic<const char*>::is_always_lock_free, "the signal handler reads it");
 
 // A stack for the handler: a stack overflow leaves none on the thread's own.
 alignas(16) char g_alt_stack[1 << 16];
@@ -99,6 +101,23 @@ extern "C" void on_crash(int sig) {
   ::raise(sig);
 }
 
+extern "C" void on_crash_notice(int sig) {
+  if (const char* line = g_notice.load(std::memory_order_relaxed)) {
+    char head[64];
+    char* p = put_str(head, "pinsim: killed by ");
+    p = put_str(p, signal_abbrev(sig));
+    p = put_str(p, " ");
+    (void)write_all(STDERR_FILENO, head, static_cast<std::size_t>(p - head));
+    (void)write_all(STDERR_FILENO, line, std::strlen(line));
+    (void)write_all(STDERR_FILENO, "\n", 1);
+  }
+  struct sigaction dfl = {};
+  dfl.sa_handler = SIG_DFL;
+  sigemptyset(&dfl.sa_mask);
+  ::sigaction(sig, &dfl, nullptr);
+  ::raise(sig);  // delivered with the default action when this handler returns
+}
+
 /// A second SIGINT (SIGTERM, ...) while the run finishes its step: stop_signals ends the
 /// process with it after this.
 void on_second_stop(int sig) {
@@ -124,6 +143,7 @@ CrashSummary::CrashSummary(const fs::path& dir, nlohmann::json summary) {
   a->interrupted_prefix.resize(a->interrupted_prefix.size() - 2);
   a->dest = (dir / "summary.json").string();
   a->tmp = a->dest + ".crash." + std::to_string(::getpid());
+  g_notice.store(nullptr, std::memory_order_relaxed);  // summary.json will say it
   a->fd = ::open(a->tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
   if (a->fd < 0) {
     const std::string msg = output_error_text(a->tmp, "write", errno);
@@ -180,6 +200,23 @@ CrashSummary::~CrashSummary() {
 
 void CrashSummary::set_step(uint64_t step) noexcept {
   g_step.store(step, std::memory_order_relaxed);
+}
+
+void set_crash_notice(const char* line) noexcept {
+  g_notice.store(line, std::memory_order_relaxed);
+  static const bool installed = [] {
+    stack_t ss = {};
+    ss.ss_sp = g_alt_stack;
+    ss.ss_size = sizeof g_alt_stack;
+    ::sigaltstack(&ss, nullptr);
+    struct sigaction sa = {};
+    sa.sa_handler = on_crash_notice;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_ONSTACK;
+    for (const int sig : kCrashSignals) ::sigaction(sig, &sa, nullptr);
+    return true;
+  }();
+  (void)installed;
 }
 
 }  // namespace pinsim

@@ -41,4 +41,13 @@ class CrashSummary {
   static void set_step(uint64_t step) noexcept;
 };
 
+/// Where no summary.json can say it (a crash before a run's output folder is prepared, or a
+/// run without --out): from now on a crash signal (SIGSEGV, SIGBUS, SIGFPE, SIGILL, SIGABRT)
+/// first prints "pinsim: killed by SIGSEGV " followed by `line` on stderr, then kills the
+/// process as before (default action), so the exit status still shows it. `line` must live
+/// as long as the process (a literal); nullptr silences it. Arming a CrashSummary silences
+/// it: summary.json then says what happened. Async-signal-safe handler, on the same
+/// alternate stack.
+void set_crash_notice(const char* line) noexcept;
+
 }  // namespace pinsim

@@ -23,6 +23,19 @@ const std::string kLongScene = R"({"time": {"dt": 0.001, "duration": 1000.0},
   "particles": [{"x": [0, 0], "v": [1, 0]}], "forces": [{"type": "gravity"}],
   "output": {"every": 1}})";
 
+// Under ASan (the asan preset) a child must leave the crash signals to pinsim's own handler
+// and then to the default action, as a release build does: ASan would otherwise report the
+// crash and exit 1. The options are read when the child starts; this process's sanitizer
+// read its own long ago. (Without ASan the variable is ignored.)
+void leave_crash_signals_to_pinsim() {
+  const char* own = std::getenv("ASAN_OPTIONS");
+  ::setenv("ASAN_OPTIONS",
+           ((own && *own ? std::string(own) + ":" : std::string()) +
+            "handle_segv=0:handle_sigbus=0:handle_sigfpe=0:handle_sigill=0:handle_abort=0")
+               .c_str(),
+           1);
+}
+
 // Every line of a CSV file is whole: the file ends with '\n', each line has `commas`, and
 // there are at least `min_lines`.
 void check_whole_lines(const fs::path& csv, int commas, std::size_t min_lines = 2) {
@@ -109,16 +122,7 @@ TEST_CASE("faults: run on a full disk (a 256 KiB tmpfs) exits 1, summary parses"
 TEST_CASE("faults: a crashing force plugin leaves summary.json saying crashed") {
   // The ball moves at 1 unit/s with dt = 0.01: x = 0.51 after step 51, the first past the
   // fixture's threshold 0.505, so the force of step 52 crashes; 51 steps are complete.
-  // Under ASan (the asan preset) the child must leave these signals to pinsim's own handler
-  // and then to the default action, as a release build does: ASan would otherwise report
-  // the crash and exit 1. The options are read when the child starts; this process's
-  // sanitizer read its own long ago. (Without ASan the variable is ignored.)
-  const char* own = std::getenv("ASAN_OPTIONS");
-  ::setenv("ASAN_OPTIONS",
-           ((own && *own ? std::string(own) + ":" : std::string()) +
-            "handle_segv=0:handle_sigbus=0:handle_sigfpe=0:handle_sigill=0:handle_abort=0")
-               .c_str(),
-           1);
+  leave_crash_signals_to_pinsim();
   for (const int sig : {SIGSEGV, SIGABRT, SIGBUS, SIGFPE}) {
     CAPTURE(sig);
     const fs::path dir = test::temp_dir("crash");
@@ -149,6 +153,37 @@ TEST_CASE("faults: a crashing force plugin leaves summary.json saying crashed") 
     check_whole_lines(dir / "run" / "trajectory.csv", 5);
     for (const auto& e : fs::directory_iterator(dir / "run"))
       CHECK_THAT(e.path().filename().string(), !Contains(".crash."));
+    // summary.json says it, so the notice of a crash with no summary stays silent.
+    CHECK_THAT(test::read_file(dir / "log"), !Contains("pinsim: killed by"));
+  }
+}
+
+TEST_CASE("faults: a plugin that crashes before the output folder is prepared says so") {
+  // The fixture crashes in its constructor, before run_scene arms the crash summary: no
+  // summary.json can say it, so stderr does, and the signal still kills the process.
+  leave_crash_signals_to_pinsim();
+  for (const int sig : {SIGSEGV, SIGABRT}) {
+    for (const bool out : {true, false}) {
+      CAPTURE(sig, out);
+      const fs::path dir = test::temp_dir("crash-early");
+      test::write_file(dir / "crash.json", R"({"time": {"dt": 0.01, "duration": 1.0},
+        "particles": [{"x": [0, 0], "v": [1, 0]}],
+        "forces": [{"type": "crash_force", "library": ")" PINSIM_TEST_FIXTURE_DIR
+                                           R"(/libfixture_crash_force.so",
+                    "params": {"signal": )" + std::to_string(sig) +
+                                               R"(, "in_create": true}}]})");
+      std::vector<std::string> args = {"run", (dir / "crash.json").string()};
+      if (out) args.insert(args.end(), {"--out", (dir / "run").string()});
+      const pid_t pid = test::spawn_pinsim(args, dir / "log");
+      CHECK(test::wait_pinsim(pid) == -sig);
+      const std::string name = sig == SIGSEGV ? "SIGSEGV" : "SIGABRT";
+      const std::string log = test::read_file(dir / "log");
+      CHECK_THAT(log, Contains("pinsim: killed by " + name +
+                               (out ? " before the run's output folder was prepared: it has no "
+                                      "summary.json"
+                                    : " (a run without --out writes no summary.json)")));
+      CHECK_FALSE(fs::exists(dir / "run" / "summary.json"));
+    }
   }
 }
 
