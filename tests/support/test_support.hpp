@@ -27,6 +27,30 @@ class FpTrapsOff {
   int saved_;
 };
 
+/// Whether this build has AddressSanitizer (the asan preset).
+#if defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kAddressSanitizer = true;
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+inline constexpr bool kAddressSanitizer = true;
+#else
+inline constexpr bool kAddressSanitizer = false;
+#endif
+#else
+inline constexpr bool kAddressSanitizer = false;
+#endif
+
+/// Shell variable assignments to put before a `pinsim play` window's command under Xvfb.
+/// Under ASan: SDL's software renderer and an unaccelerated window framebuffer, so SDL loads
+/// no OpenGL. Otherwise SDL loads Mesa's driver (dri/swrast_dri.so) through libGLX_mesa,
+/// which unloads it again with 240 bytes still held by the driver's globals; LeakSanitizer
+/// then reports them from a module that is gone, which no suppression can name (with the
+/// driver kept loaded by LD_PRELOAD, nothing is reported). pinsim's code is the same either
+/// way: it asks SDL for a renderer and draws with SDL's calls. Elsewhere: nothing.
+inline std::string play_window_env() {
+  return kAddressSanitizer ? "SDL_RENDER_DRIVER=software SDL_FRAMEBUFFER_ACCELERATION=0 " : "";
+}
+
 /// A fresh empty folder under the build tree's temp area, unique per call.
 std::filesystem::path temp_dir(const std::string& tag);
 

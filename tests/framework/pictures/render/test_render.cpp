@@ -295,9 +295,10 @@ TEST_CASE(
   const std::string table = PINSIM_SOURCE_DIR "/configs/pinball.json";
   const std::string script = PINSIM_TEST_SOURCE_DIR "/framework/pictures/render/play_script.json";
   const fs::path rec = dir / "recording.json", shot = dir / "shot.png";
-  auto r = shell("xvfb-run -a -s '-screen 0 1024x1280x24' " + std::string(PINSIM_BIN) + " play " +
-                 table + " --script " + script + " --seconds 3 --width 400 --record " +
-                 rec.string() + " --screenshot " + shot.string());
+  auto r =
+      shell(test::play_window_env() + "xvfb-run -a -s '-screen 0 1024x1280x24' " +
+            std::string(PINSIM_BIN) + " play " + table + " --script " + script +
+            " --seconds 3 --width 400 --record " + rec.string() + " --screenshot " + shot.string());
   INFO(r.output);
   REQUIRE(r.code == 0);
   const auto recording = nlohmann::json::parse(test::read_file(rec));
