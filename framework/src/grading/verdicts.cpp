@@ -1,5 +1,6 @@
 #include "grading/verdicts.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -184,6 +185,104 @@ std::string second_opinion(const Scene& scene, const RubricTest& t, const State&
   }
 }
 
+/// The grader's own measurement of a backend's advance() for backend_approaching_only: the
+/// submission's contact reports are not trusted. advance() only drifts x along v and resolves
+/// contacts (forces, gravity included, act in the integrator outside it), so any velocity
+/// change it makes is a contact impulse, and the reports must account for it.
+struct AdvanceAudit {
+  const pinsim_plugin* inner = nullptr;  ///< the submission's table
+  std::vector<bool> moving;              ///< per obstacle: moves (its velocity is unknown here)
+  double tol = 1e-9;                     ///< the rubric's separating tolerance (m/s)
+  double rel = 1e-6;                     ///< accepted mismatch, relative to |v|
+  uint64_t step = 0;
+  std::string failure;  ///< the first failure, empty while none
+};
+thread_local AdvanceAudit* g_audit = nullptr;
+
+bool finite_event(const pinsim_event& e) {
+  return std::isfinite(e.t) && std::isfinite(e.point[0]) && std::isfinite(e.point[1]) &&
+         std::isfinite(e.normal[0]) && std::isfinite(e.normal[1]) && std::isfinite(e.vn_before) &&
+         std::isfinite(e.vn_after);
+}
+
+std::string audit_advance(const AdvanceAudit& a, const pinsim_state_mut& s,
+                          const std::vector<double>& v0, const std::vector<pinsim_event>& evs) {
+  const std::string at = "at step " + std::to_string(a.step) + " particle ";
+  for (const auto& e : evs) {
+    if (!finite_event(e))
+      return at + std::to_string(e.particle) + ": a contact report holds a non-finite number (t " +
+             num(e.t, 3) + ", normal (" + num(e.normal[0], 3) + ", " + num(e.normal[1], 3) +
+             "), vn_before " + num(e.vn_before, 3) + ", vn_after " + num(e.vn_after, 3) + ")";
+  }
+  for (uint64_t i = 0; i < s.n; ++i) {
+    const Eigen::Vector2d vb(v0[2 * i], v0[2 * i + 1]), va(s.v[2 * i], s.v[2 * i + 1]);
+    const Eigen::Vector2d dv = va - vb;
+    const double scale = std::max({vb.norm(), va.norm(), 1e-12});
+    const double acc = a.rel * scale + 1e-12;
+    const pinsim_event* first = nullptr;
+    for (const auto& e : evs)
+      if (e.particle == static_cast<int64_t>(i) || e.other == static_cast<int64_t>(i)) {
+        first = &e;
+        break;
+      }
+    const std::string who = at + std::to_string(i);
+    if (first == nullptr) {
+      if (dv.norm() > acc)
+        return who + ": its velocity changed by (" + num(dv.x(), 3) + ", " + num(dv.y(), 3) +
+               ") in advance() with no contact reported: every impulse must be reported";
+      continue;
+    }
+    // The first contact meets the velocity the step started with: check the reported
+    // approach against it, for static obstacles (a moving obstacle's velocity is unknown).
+    if (first->particle != static_cast<int64_t>(i) || first->obstacle < 0 ||
+        a.moving[static_cast<std::size_t>(first->obstacle)])
+      continue;
+    const Eigen::Vector2d n(first->normal[0], first->normal[1]);
+    if (std::abs(n.norm() - 1.0) > 1e-6)
+      return who + ": a contact report's normal (" + num(n.x(), 3) + ", " + num(n.y(), 3) +
+             ") is not a unit vector";
+    const double vn = vb.dot(n);
+    if (std::abs(first->vn_before - vn) > acc)
+      return who + ": reported normal velocity before the impulse " + num(first->vn_before, 6) +
+             ", but the grader measured " + num(vn, 6) + " (v before . normal)";
+    if (vn > a.tol && dv.dot(n) > acc)
+      return who + ": got an impulse while separating (measured v.n = " + num(vn, 3) +
+             " > 0 before, velocity change along the normal " + num(dv.dot(n), 3) + ")";
+  }
+  return "";
+}
+
+int audited_advance(void* self, pinsim_state_mut* s, double dt, const pinsim_event_sink* events,
+                    pinsim_error* err) {
+  AdvanceAudit& a = *g_audit;
+  const std::vector<double> v0(s->v, s->v + 2 * s->n);
+  std::vector<pinsim_event> evs;
+  const pinsim_event_sink mine{&evs, [](void* c, const pinsim_event* e) {
+                                 static_cast<std::vector<pinsim_event>*>(c)->push_back(*e);
+                               }};
+  const int rc = a.inner->backend.advance(self, s, dt, &mine, err);
+  if (events != nullptr)
+    for (const auto& e : evs) events->emit(events->context, &e);
+  if (rc == 0 && a.failure.empty()) a.failure = audit_advance(a, *s, v0, evs);
+  return rc;
+}
+
+/// The submission's backend with advance() measured by `audit` (which must outlive it).
+std::shared_ptr<const LoadedPlugin> audited(const std::shared_ptr<const LoadedPlugin>& plugin,
+                                            AdvanceAudit& audit) {
+  struct Owner {
+    std::shared_ptr<const LoadedPlugin> inner;
+    pinsim_plugin table;
+  };
+  auto owner = std::make_shared<Owner>(Owner{plugin, *plugin->table});
+  owner->table.backend.advance = audited_advance;
+  audit.inner = plugin->table;
+  auto p = std::make_shared<LoadedPlugin>(*plugin);
+  p->table = &owner->table;
+  p->owner = owner;
+  return p;
+}
+
 Verdict backend_test(const std::shared_ptr<const LoadedPlugin>& plugin, const RubricTest& t,
                      const fs::path& rubric_dir) {
   const std::string scene_file = t.spec.at("scene").get<std::string>();
@@ -193,22 +292,40 @@ Verdict backend_test(const std::shared_ptr<const LoadedPlugin>& plugin, const Ru
   Scene mine = ref_scene;
   mine.backend = PluginRef{t.plugin, "", nlohmann::json::object(), "your backend"};
   PluginLoader l1(plugin_search_dirs()), l2(plugin_search_dirs());
-  l2.provide(plugin);
-  Simulation ref(ref_scene, l1), sub(mine, l2);
   const double tol = t.spec.value("tolerance", 1e-3);
+  const bool approaching = t.check == "backend_approaching_only";
+  AdvanceAudit audit;
+  audit.tol = tol;
+  audit.rel = t.spec.value("measured_tolerance", audit.rel);
+  for (const auto& o : ref_scene.backend_scene.value("obstacles", nlohmann::json::array())) {
+    const std::string d = o.dump();
+    bool moves = false;
+    for (const char* k : {"\"motion\"", "\"pivot\"", "\"path\"", "\"velocity\""})
+      moves = moves || d.find(k) != std::string::npos;
+    audit.moving.push_back(moves);
+  }
+  l2.provide(approaching ? audited(plugin, audit) : plugin);
+  struct Scope {
+    explicit Scope(AdvanceAudit* a) { g_audit = a; }
+    ~Scope() { g_audit = nullptr; }
+  } scope(approaching ? &audit : nullptr);
+  Simulation ref(ref_scene, l1), sub(mine, l2);
   const bool has_distance = ref.backend().has_distance();
   for (uint64_t n = 0; n < ref_scene.steps(); ++n) {
     ref.step();
+    audit.step = n + 1;
     try {
       sub.step();
     } catch (const NumericError& e) {
+      if (!audit.failure.empty()) return {false, audit.failure};
       return {false,
               "your backend's run failed at step " + std::to_string(e.step) + ": " + e.what()};
     }
     const State& s = sub.state();
-    if (t.check == "backend_approaching_only") {
+    if (approaching) {
+      if (!audit.failure.empty()) return {false, audit.failure};
       for (const auto& e : sub.events())
-        if (e.vn_before > tol)
+        if (!(e.vn_before <= tol))
           return {false, "at t = " + num(e.t, 3) + " particle " + std::to_string(e.particle) +
                              " got an impulse from obstacle " + ref_scene.obstacle_id(e.obstacle) +
                              " while separating (normal velocity before = " + num(e.vn_before, 3) +
