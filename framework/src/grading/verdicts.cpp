@@ -220,10 +220,11 @@ std::string audit_advance(const AdvanceAudit& a, const pinsim_state_mut& s,
     const double scale = std::max({vb.norm(), va.norm(), 1e-12});
     const double acc = a.rel * scale + 1e-12;
     const pinsim_event* first = nullptr;
+    int contacts = 0;
     for (const auto& e : evs)
       if (e.particle == static_cast<int64_t>(i) || e.other == static_cast<int64_t>(i)) {
-        first = &e;
-        break;
+        if (first == nullptr) first = &e;
+        ++contacts;
       }
     const std::string who = at + std::to_string(i);
     if (first == nullptr) {
@@ -245,6 +246,11 @@ std::string audit_advance(const AdvanceAudit& a, const pinsim_state_mut& s,
     if (std::abs(first->vn_before - vn) > acc)
       return who + ": reported normal velocity before the impulse " + num(first->vn_before, 6) +
              ", but the grader measured " + num(vn, 6) + " (v before . normal)";
+    // One contact: the whole normal velocity change is its impulse (friction is tangential).
+    if (contacts == 1 && std::abs(dv.dot(n) - (first->vn_after - first->vn_before)) > acc)
+      return who + ": reported a normal velocity change of " +
+             num(first->vn_after - first->vn_before, 6) + ", but the grader measured " +
+             num(dv.dot(n), 6);
     if (vn > a.tol && dv.dot(n) > acc)
       return who + ": got an impulse while separating (measured v.n = " + num(vn, 3) +
              " > 0 before, velocity change along the normal " + num(dv.dot(n), 3) + ")";
