@@ -7,6 +7,8 @@
 #include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <utility>
+#include <vector>
 
 #include "test_support.hpp"
 
@@ -220,6 +222,29 @@ TEST_CASE("grader: a submission's name cannot forge a row or shift columns of th
   CHECK(pinsim::test::read_file(out / "batch-0-of-1.csv") ==
         "submission,score,max_score\nbob%2C10.0,3.0,10.0\n"
         "mallory%0Aalice%2C10.0%2C10.0,3.0,10.0\n");
+}
+
+TEST_CASE("grader: backend_approaching_only measures impulses, not the reports") {
+  // Each forgery is the reference backend plus one push, in the first step, to a ball that
+  // is already leaving the floor: only "ball leaving a floor" may fail, with the grader's
+  // measurement named in the message, whatever the submission reports about the push.
+  const fs::path rubric = configs / "collision_assignment.json";
+  const std::string name = "ball leaving a floor: no impulse while separating";
+  const std::vector<std::pair<std::string, std::string>> forgeries = {
+      {"silent_push_backend", "with no contact reported"},
+      {"false_approach_backend", "but the grader measured"},
+      {"nan_report_backend", "non-finite"}};
+  for (const auto& [sub, message] : forgeries) {
+    const json r = grade(rubric, subs / sub, sub);
+    CAPTURE(sub);
+    CAPTURE(r["output"].get<std::string>());
+    auto t = by_name(r);
+    CHECK(t[name]["status"] == "failed");
+    CHECK_THAT(t[name]["output"].get<std::string>(), Contains(message));
+    CHECK_THAT(t[name]["output"].get<std::string>(), Contains("at step 1 particle 0"));
+    CHECK(r["score"].get<double>() ==
+          r["max_score"].get<double>() - t[name]["max_score"].get<double>());
+  }
 }
 
 TEST_CASE("grader: batch mode grades a folder of submissions in shards") {
