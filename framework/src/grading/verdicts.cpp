@@ -236,6 +236,7 @@ std::string audit_advance(const AdvanceAudit& a, const pinsim_state_mut& s,
     // The first contact meets the velocity the step started with: check the reported
     // approach against it, for static obstacles (a moving obstacle's velocity is unknown).
     if (first->particle != static_cast<int64_t>(i) || first->obstacle < 0 ||
+        static_cast<std::size_t>(first->obstacle) >= a.moving.size() ||
         a.moving[static_cast<std::size_t>(first->obstacle)])
       continue;
     const Eigen::Vector2d n(first->normal[0], first->normal[1]);
