@@ -7,6 +7,7 @@
 //
 // Usage: pinsim_bench_cloth [n=100] [out_dir=/tmp/pinsim_bench_cloth]
 #include <algorithm>
+#include <charconv>
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
@@ -14,8 +15,10 @@
 #include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <string_view>
 #include <vector>
 
+#include "cloth_scene.hpp"
 #include "core/plugin_loader.hpp"
 #include "core/recorder.hpp"
 #include "core/scene.hpp"
@@ -25,21 +28,7 @@
 namespace {
 
 nlohmann::json cloth_scene(int n, const std::string& integrator, const std::string& format) {
-  nlohmann::json pin = nlohmann::json::array();
-  for (int i = 0; i < n; ++i) pin.push_back((n - 1) * n + i);  // the top row
-  nlohmann::json doc = nlohmann::json::parse(R"({"name": "cloth",
-    "time": {"dt": 0.001, "duration": 1.0}, "backend": {"name": "sdf"},
-    "bodies": [{"type": "grid_blob", "name": "cloth", "origin": [0, 0],
-                "spacing": 0.01, "total_mass": 10.0, "radius": 0.002}],
-    "forces": [{"type": "gravity", "params": {"g": [0, -9.81]}},
-               {"type": "damped_spring", "params": {"ks": 50, "kd": 0.01},
-                "elements": {"body": "cloth", "set": "edges"}},
-               {"type": "damped_spring", "params": {"ks": 20, "kd": 0.005},
-                "elements": {"body": "cloth", "set": "shear"}}]})");
-  doc["integrator"] = integrator;
-  doc["bodies"][0]["nx"] = n;
-  doc["bodies"][0]["ny"] = n;
-  doc["bodies"][0]["pin"] = pin;
+  nlohmann::json doc = pinsim::bench::cloth_scene(n, integrator);
   doc["output"] = {{"format", format}};
   return doc;
 }
@@ -68,7 +57,16 @@ double median_ms(const std::function<void()>& fn, int repeats, int warm) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  const int n = argc > 1 ? std::atoi(argv[1]) : 100;
+  int n = 100;
+  if (argc > 1) {
+    const std::string_view a(argv[1]);
+    const auto [end, ec] = std::from_chars(a.data(), a.data() + a.size(), n);
+    if (ec != std::errc() || end != a.data() + a.size() || n < 2 || n > 1000) {
+      std::fprintf(stderr, "usage: pinsim_bench_cloth [n=100, 2..1000] [out_dir]: n was '%s'\n",
+                   argv[1]);
+      return 2;
+    }
+  }
   const std::filesystem::path out = argc > 2 ? argv[2] : "/tmp/pinsim_bench_cloth";
   pinsim::PluginLoader loader(pinsim::plugin_search_dirs());
   std::printf("figure,value,unit\nparticles,%d,\n", n * n);

@@ -38,6 +38,7 @@
 #include <vector>
 
 #include "bench_world.hpp"
+#include "cloth_scene.hpp"
 #include "core/plugin_loader.hpp"
 #include "core/recorder.hpp"
 #include "core/scene.hpp"
@@ -62,26 +63,6 @@ double wall_ms() {
   return std::chrono::duration<double, std::milli>(
              std::chrono::steady_clock::now().time_since_epoch())
       .count();
-}
-
-/// The cloth of pinsim_bench_cloth: n x n particles of 1 g, top row pinned, damped springs
-/// on the edges (ks 50) and shears (ks 20), gravity, dt = 1 ms.
-json cloth_scene(int n) {
-  json pin = json::array();
-  for (int i = 0; i < n; ++i) pin.push_back((n - 1) * n + i);
-  json doc = json::parse(R"({"name": "cloth", "integrator": "symplectic_euler",
-    "time": {"dt": 0.001, "duration": 1.0}, "backend": {"name": "sdf"},
-    "bodies": [{"type": "grid_blob", "name": "cloth", "origin": [0, 0],
-                "spacing": 0.01, "total_mass": 10.0, "radius": 0.002}],
-    "forces": [{"type": "gravity", "params": {"g": [0, -9.81]}},
-               {"type": "damped_spring", "params": {"ks": 50, "kd": 0.01},
-                "elements": {"body": "cloth", "set": "edges"}},
-               {"type": "damped_spring", "params": {"ks": 20, "kd": 0.005},
-                "elements": {"body": "cloth", "set": "shear"}}]})");
-  doc["bodies"][0]["nx"] = n;
-  doc["bodies"][0]["ny"] = n;
-  doc["bodies"][0]["pin"] = pin;
-  return doc;
 }
 
 /// configs/pinball.json with `balls` balls of its ball's radius dropped at random into the
@@ -182,7 +163,7 @@ int main(int argc, char** argv) {
     json scene;
   };
   const std::vector<Case> cases = {
-      {"cloth", cloth_scene(side)},
+      {"cloth", pinsim::bench::cloth_scene(side)},
       {"balls", balls_scene(static_cast<std::size_t>(side) * static_cast<std::size_t>(side))}};
   std::vector<std::string> writers = {"none", "csv"};
   if (pinsim::hdf5_supported()) writers.insert(writers.end(), {"hdf5_inline", "hdf5"});
