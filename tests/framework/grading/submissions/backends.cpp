@@ -22,6 +22,14 @@ class StudentBackend : public pinsim::sdf::SdfBackend {
     i.name = "student_sdf";
     return i;
   }
+  /// The obstacles' outward unit normal at p: central differences of the distance (h = 1e-6).
+  pinsim::Vec2 normal(const pinsim::Vec2& p, double t) const {
+    const double h = 1e-6;
+    const pinsim::Vec2 dx(h, 0), dy(0, h);
+    const pinsim::Vec2 g((distance(p + dx, t, nullptr) - distance(p - dx, t, nullptr)) / (2 * h),
+                         (distance(p + dy, t, nullptr) - distance(p - dy, t, nullptr)) / (2 * h));
+    return g.normalized();
+  }
 #if SUBMISSION == 1
   void advance(pinsim::MutableState& s, double dt, pinsim::EventSink&) {
     for (Eigen::Index i = 0; i < s.x.cols(); ++i) s.x.col(i) += dt * s.v.col(i);
@@ -33,15 +41,7 @@ class StudentBackend : public pinsim::sdf::SdfBackend {
       int64_t obstacle = -1;
       const double d = distance(p, s.t, &obstacle) - s.radius[i];
       if (d < s.v.col(i).norm() * dt + 1e-3) {
-        // Normal by central differences of the distance.
-        const double h = 1e-6;
-        pinsim::Vec2 n((distance(p + pinsim::Vec2(h, 0), s.t, nullptr) -
-                        distance(p - pinsim::Vec2(h, 0), s.t, nullptr)) /
-                           (2 * h),
-                       (distance(p + pinsim::Vec2(0, h), s.t, nullptr) -
-                        distance(p - pinsim::Vec2(0, h), s.t, nullptr)) /
-                           (2 * h));
-        n.normalize();
+        const pinsim::Vec2 n = normal(p, s.t);
         const double vn = s.v.col(i).dot(n);
         s.v.col(i) -= 2.0 * vn * n;  // the bug: no check that vn < 0
         pinsim_event e{s.t, i, obstacle, -1, {p.x(), p.y()}, {n.x(), n.y()}, vn, -vn};
@@ -59,14 +59,7 @@ class StudentBackend : public pinsim::sdf::SdfBackend {
       int64_t obstacle = -1;
       const double d = distance(p, s.t, &obstacle) - s.radius[i];
       if (obstacle < 0 || d > 1e-2) continue;
-      const double h = 1e-6;
-      pinsim::Vec2 n((distance(p + pinsim::Vec2(h, 0), s.t, nullptr) -
-                      distance(p - pinsim::Vec2(h, 0), s.t, nullptr)) /
-                         (2 * h),
-                     (distance(p + pinsim::Vec2(0, h), s.t, nullptr) -
-                      distance(p - pinsim::Vec2(0, h), s.t, nullptr)) /
-                         (2 * h));
-      n.normalize();
+      const pinsim::Vec2 n = normal(p, s.t);
       const double vn = s.v.col(i).dot(n);
       if (vn <= 0.01) continue;  // only a ball already leaving
       s.v.col(i) += 0.5 * vn * n;
