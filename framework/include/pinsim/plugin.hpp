@@ -459,8 +459,12 @@ void destroy(void* self) noexcept {
 
 template <class T>
 const pinsim_plugin* make_table() {
-  static TableStorage st = [] {
-    TableStorage s;
+  // The table points into its storage (names, docs, parameters), so the storage is filled
+  // where it lives and never copied or moved: a short name sits inside the std::string
+  // itself (small-string buffer), and a copy would leave the table pointing at the old one.
+  static TableStorage st;
+  static const bool filled = [] {
+    TableStorage& s = st;
     s.info = T::info();
     for (const auto& p : s.info.params) {
       pinsim_param c{};
@@ -581,8 +585,9 @@ const pinsim_plugin* make_table() {
         };
       }
     }
-    return s;
+    return true;
   }();
+  (void)filled;
   return &st.table;
 }
 
