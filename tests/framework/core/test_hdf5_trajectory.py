@@ -142,20 +142,28 @@ for kind, args in (("render svg", ["render", "{dir}", "--out", "{out}.svg"]),
 long_scene = dict(SCENE, time={"dt": 0.0001, "duration": 1000.0},
                   output={"every": 1, "format": "hdf5"})
 long_path = write_scene("long.json", long_scene)
-for k, size in enumerate((6_000_000, 16_000_000, 24_000_000)):
-    out = os.path.join(WORK, f"killed{k}")
+
+
+def start_until_size(scene_path, out, size):
+    """Starts `pinsim run` on scene_path into out and returns once its trajectory.h5 holds
+    `size` bytes (or the run ended, or 120 s passed); the process is still running."""
     f5 = os.path.join(out, "trajectory.h5")
-    p = subprocess.Popen([PINSIM, "-q", "run", long_path, "--out", out],
+    p = subprocess.Popen([PINSIM, "-q", "run", scene_path, "--out", out],
                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.monotonic() + 120.0
     while time.monotonic() < deadline and p.poll() is None:
         if os.path.exists(f5) and os.path.getsize(f5) >= size:
             break
         time.sleep(0.01)
+    return p
+
+for k, size in enumerate((6_000_000, 16_000_000, 24_000_000)):
+    out = os.path.join(WORK, f"killed{k}")
+    f5 = os.path.join(out, "trajectory.h5")
+    p = start_until_size(long_path, out, size)
     time.sleep(0.001 * (k + 1))
     p.send_signal(signal.SIGKILL)
     p.wait()
-    f5 = os.path.join(out, "trajectory.h5")
     d = subprocess.run(["h5dump", "-A", f5], capture_output=True, text=True)
     check(d.returncode == 0 and "frames_complete" in d.stdout,
           f"kill {k}: h5dump -A: exit {d.returncode}: {d.stderr[:300]}")
@@ -195,13 +203,7 @@ if r.returncode == 0:
 for sig in (signal.SIGINT, signal.SIGTERM):
     out = os.path.join(WORK, f"stopped_{sig.name}")
     f5 = os.path.join(out, "trajectory.h5")
-    p = subprocess.Popen([PINSIM, "-q", "run", long_path, "--out", out],
-                         stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.monotonic() + 120.0
-    while time.monotonic() < deadline and p.poll() is None:
-        if os.path.exists(f5) and os.path.getsize(f5) >= 3_000_000:
-            break
-        time.sleep(0.01)
+    p = start_until_size(long_path, out, 3_000_000)
     p.send_signal(sig)
     p.wait(timeout=60)
     s = json.load(open(os.path.join(out, "summary.json")))
