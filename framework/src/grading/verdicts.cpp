@@ -109,7 +109,13 @@ Verdict reference_test(const std::shared_ptr<const LoadedPlugin>& sub, const Rub
                 ", " + num(f1(1, i), 3) + ")";
       }
     }
-    if (fr.has_energy() && fs_.has_energy()) {
+    if (fr.has_energy() && !fs_.has_energy()) {
+      // Omitting energy() must not skip its comparison: the reference's energy is part of
+      // what the plugin is asked to reproduce.
+      worst = HUGE_VAL;
+      where = "your plugin has no energy() (the reference '" + ref_name +
+              "' has one: declare PINSIM_CAP_ENERGY and implement it)";
+    } else if (fr.has_energy()) {
       const double e1 = fr.energy(s.view()), e2 = fs_.energy(s.view());
       const double err = std::abs(e2 - e1) / std::max(1e-12, std::abs(e1));
       if (!std::isfinite(err) || err > worst) {

@@ -136,6 +136,9 @@ TEST_CASE("grader: each broken force submission gets its expected score and mess
       {"missing_half", 6, {"f = -grad E", "agrees with the reference"}, "does not converge"},
       {"wrong_jacobian", 9, {"df/dx"}, "df/dx"},
       {"nan_degenerate", 9, {"finite on degenerate states"}, "n"},
+      // Omitting energy() loses the gradient check and the reference check (energies are
+      // compared there), not just the gradient check.
+      {"no_energy", 6, {"agrees with the reference", "f = -grad E"}, "your plugin has no energy()"},
       {"segfault", 1, {"f = -grad E", "hanging chain"}, "segmentation fault"},
       {"infinite_loop", 1, {"f = -grad E", "hanging chain"}, "limit"},
       {"huge_allocation", 1, {"f = -grad E", "hanging chain"}, "alloc"},

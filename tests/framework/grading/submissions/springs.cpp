@@ -1,6 +1,7 @@
 // Student "linear_spring" submissions for the grader tests, one per -DSUBMISSION value.
 // The physics variants reuse the check-plugin fixtures (tests/fixtures/wrong_spring.hpp);
-// the others misbehave the way real submissions do: crash, hang, allocate without bound.
+// one leaves out energy(); the others misbehave the way real submissions do: crash, hang,
+// allocate without bound.
 #include <cstdint>
 #include <cstdlib>
 #include <pinsim/plugin.hpp>
@@ -48,6 +49,26 @@ class Misbehaving : public WrongSpring<Bug::MissingHalf> {
   std::vector<char> big_;
 };
 using Submission = Misbehaving<SUBMISSION>;
+#elif SUBMISSION == 4
+// Right forces and Jacobians (those of the missing-half variant, whose only bug is its
+// energy), but no energy() at all: leaving it out must not skip the reference check's
+// energy comparison.
+class NoEnergy {
+ public:
+  static pinsim::PluginInfo info() {
+    auto i = WrongSpring<Bug::MissingHalf>::info();
+    i.name = "linear_spring";
+    return i;
+  }
+  explicit NoEnergy(const pinsim::CreateContext& c) : spring_(c) {}
+  void add_force(const pinsim::StateView& s, pinsim::ForceOut& f) const { spring_.add_force(s, f); }
+  void add_dfdx(const pinsim::StateView& s, pinsim::Triplets& j) const { spring_.add_dfdx(s, j); }
+  void add_dfdv(const pinsim::StateView& s, pinsim::Triplets& j) const { spring_.add_dfdv(s, j); }
+
+ private:
+  WrongSpring<Bug::MissingHalf> spring_;
+};
+using Submission = NoEnergy;
 #else
 template <Bug B>
 class Renamed : public WrongSpring<B> {
