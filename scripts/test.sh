@@ -4,18 +4,20 @@
 #   web      the WebAssembly engine of `pinsim share` (the web preset, Emscripten), then its
 #            tests (node: bit-identical to native; headless Chromium and Firefox: the page);
 #   asan     the same ctest suite under AddressSanitizer + UBSan (the asan preset: clang,
-#            one build that also holds the libFuzzer programs), zero reports; opt-in until
-#            the whole suite has run clean under it within CI's time (README);
+#            one build that also holds the libFuzzer programs), zero reports, plus the
+#            sanitizers' own canary tests (tests/sanitizers);
 #   fuzz     a bounded libFuzzer run of the parsers (the asan build's fuzz_* programs;
-#            30 s per target). Alone, it builds only those programs.
-# Each stage prints its time. PINSIM_TEST_STAGES picks them (default "release web fuzz").
+#            30 s per target). After the asan stage it builds nothing; alone, it builds
+#            only those programs.
+# Each stage prints its time. PINSIM_TEST_STAGES picks them (default "release web asan
+# fuzz").
 # The stages run one after another, so the release and asan suites' Slurm tests never meet
 # (each starts and stops its own cluster, in its own folder, on free ports).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh
 jobs=$(nproc 2>/dev/null || echo 2)
-stages=${PINSIM_TEST_STAGES:-release web fuzz}
+stages=${PINSIM_TEST_STAGES:-release web asan fuzz}
 has() { [[ " $stages " == *" $1 "* ]]; }
 took() { echo "test.sh: $1 took $((SECONDS - $2)) s"; }
 
