@@ -27,10 +27,13 @@ int signed_overflow() {
   return a == 0;
 }
 
+// A volatile pointer: the allocation cannot be elided (as an unused `new` may be).
+char* volatile g_block = nullptr;
+
 int leak() {
-  char* p = new char[64];
-  p[0] = static_cast<char>(g_index);
-  p = nullptr;  // the only pointer to it is gone
+  g_block = new char[64];
+  g_block[0] = static_cast<char>(g_index);
+  g_block = nullptr;  // the only pointer to it is gone
   return 0;
 }
 
