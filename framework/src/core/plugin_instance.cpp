@@ -1,5 +1,9 @@
 #include "core/plugin_instance.hpp"
 
+#include <fmt/format.h>
+
+#include <string>
+
 #include "core/bodies.hpp"
 
 namespace pinsim {
@@ -65,10 +69,68 @@ double ForceInstance::energy(const pinsim_state_view& s) const {
   return e;
 }
 
+namespace {
+
+/// A sink between a plugin and the host's sink that passes on only entries inside the
+/// state (rows and columns below 2n, block particles below n): a plugin's stray index must
+/// not reach a host array. The first entry outside is kept for the error message; the
+/// caller throws after the plugin returns (an exception must not cross the plugin's C ABI).
+struct BoundedSink {
+  const pinsim_triplet_sink* to;
+  uint64_t n;  ///< particles
+  const char* which;
+  std::string bad;
+
+  void add(uint32_t row, uint32_t col, double value) {
+    if (row >= 2 * n || col >= 2 * n) {
+      if (bad.empty())
+        bad = fmt::format("its {} has an entry at row {}, column {}", which, row, col);
+      return;
+    }
+    to->add(to->context, row, col, value);
+  }
+  void add_blocks(const uint32_t* particles, const double* values, uint64_t count) {
+    for (uint64_t q = 0; q < count; ++q)
+      if (particles[2 * q] >= n || particles[2 * q + 1] >= n) {
+        if (bad.empty())
+          bad = fmt::format("its {} has a 2x2 block at particles ({}, {})", which, particles[2 * q],
+                            particles[2 * q + 1]);
+        return;  // the whole batch: none of it reaches the host
+      }
+    to->add_blocks(to->context, particles, values, count);
+  }
+  pinsim_triplet_sink sink() {
+    pinsim_triplet_sink s{this,
+                          [](void* c, uint32_t row, uint32_t col, double value) {
+                            static_cast<BoundedSink*>(c)->add(row, col, value);
+                          },
+                          nullptr};
+    // Without the host's add_blocks the plugin must fall back to add() (ABI 4), as before.
+    if (to->add_blocks != nullptr)
+      s.add_blocks = [](void* c, const uint32_t* particles, const double* values, uint64_t count) {
+        static_cast<BoundedSink*>(c)->add_blocks(particles, values, count);
+      };
+    return s;
+  }
+};
+
+}  // namespace
+
 void ForceInstance::add_jacobians(const pinsim_state_view& s, const pinsim_triplet_sink* dfdx,
                                   const pinsim_triplet_sink* dfdv) const {
   pinsim_error err = make_err(err_);
-  if (plugin_->table->force.add_jacobians(self_, &s, dfdx, dfdv, &err) != 0) fail("add_jacobians");
+  BoundedSink bx{dfdx, s.n, "df/dx", {}}, bv{dfdv, s.n, "df/dv", {}};
+  const pinsim_triplet_sink sx = dfdx ? bx.sink() : pinsim_triplet_sink{},
+                            sv = dfdv ? bv.sink() : pinsim_triplet_sink{};
+  if (plugin_->table->force.add_jacobians(self_, &s, dfdx ? &sx : nullptr, dfdv ? &sv : nullptr,
+                                          &err) != 0)
+    fail("add_jacobians");
+  for (const BoundedSink* b : {&bx, &bv})
+    if (!b->bad.empty())
+      throw PluginError(fmt::format(
+          "{}: plugin '{}' add_jacobians: {}, outside the state (rows and columns must be "
+          "below {}, block particles below {}: {} particles)",
+          context_, plugin_->name(), b->bad, 2 * s.n, s.n, s.n));
 }
 
 BackendInstance::BackendInstance(std::shared_ptr<const LoadedPlugin> plugin, const State& initial,

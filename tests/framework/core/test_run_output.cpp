@@ -223,6 +223,34 @@ TEST_CASE("implicit Euler: a failed linear solve stops the run as a solver failu
   CHECK_THAT(e["message"].get<std::string>(), Contains("implicit_euler: the linear solve failed"));
 }
 
+TEST_CASE("a plugin's Jacobian entry outside the state stops the run naming the plugin") {
+  // The fixture's df/dx adds one entry past the last degree of freedom (kind 0: row 2n) or
+  // one 2x2 block at particle n (kind 1). Implicit Euler must neither read nor write past
+  // its arrays (under ASan it would be reported) but stop at the first step, naming the
+  // plugin, the entry and the bounds.
+  for (const int kind : {0, 1}) {
+    CAPTURE(kind);
+    const std::string scene = R"({"time": {"dt": 0.01, "duration": 0.1},
+      "integrator": "implicit_euler",
+      "particles": [{"x": [0, 0]}, {"x": [1, 0]}],
+      "forces": [{"type": "bad_jacobian_index", "library": ")" PINSIM_TEST_FIXTURE_DIR
+                              R"(/libfixture_bad_jacobian_index.so", "elements": [[0, 1]],
+                  "params": {"kind": )" +
+                              std::to_string(kind) + "}}]}";
+    PluginLoader loader(plugin_search_dirs());
+    const RunResult r = run_scene(parse_scene(scene, "bad_index.json", "."), loader, {});
+    CHECK(r.exit_code == 1);
+    const auto& e = r.summary["error"];
+    CHECK(e["kind"] == "plugin");
+    CHECK(e["step"] == 1);
+    const std::string m = e["message"].get<std::string>();
+    CHECK_THAT(m, Contains("forces[0]: plugin 'bad_jacobian_index' add_jacobians: its df/dx has"));
+    CHECK_THAT(
+        m, Contains(kind == 0 ? "an entry at row 4, column 0" : "a 2x2 block at particles (2, 0)"));
+    CHECK_THAT(m, Contains("rows and columns must be below 4, block particles below 2"));
+  }
+}
+
 TEST_CASE("interrupted run: stops cleanly with valid files") {
   const auto dir = test::temp_dir("interrupt");
   std::atomic<int> stop{SIGINT};
