@@ -83,7 +83,18 @@ bool read_action(const json& entry, const Loc& at) {
   return a == "press";
 }
 
-std::vector<Scripted> read_script(const std::string& file) {
+/// Refuses an input name the table does not have (a typo would otherwise be ignored, and
+/// the game run without that press), naming the table's inputs.
+void check_input_name(const std::string& input, const Loc& at,
+                      const std::vector<std::string>& names) {
+  if (std::find(names.begin(), names.end(), input) != names.end()) return;
+  std::string list;
+  for (const std::string& n : names) list += (list.empty() ? "'" : ", '") + n + "'";
+  at.fail("unknown input '" + input + "': this table's inputs are " +
+          (list.empty() ? std::string("none") : list));
+}
+
+std::vector<Scripted> read_script(const std::string& file, const std::vector<std::string>& names) {
   const json j =
       read_json_file("--script", file, "[{\"t\": s, \"input\": name, \"action\": press|release}]");
   const Loc root{file, ""};
@@ -98,6 +109,7 @@ std::vector<Scripted> read_script(const std::string& file) {
     require_object(entries[i], at);
     const std::string input = read_string_or(entries[i], "input", "", at);
     if (input.empty()) (at / "input").fail("required input name is missing");
+    check_input_name(input, at / "input", names);
     out.push_back({read_number(entries[i], "t", at), input, read_action(entries[i], at)});
   }
   std::stable_sort(out.begin(), out.end(),
@@ -261,6 +273,24 @@ int rerun_recording(const PlayArgs& a) {
               num(kMaxRerunSeconds) + " s (24 hours)");
   PluginLoader loader(plugin_search_dirs(scene.plugin_path));
   PinballGame game(scene, loader);
+  // Each input one of the table's, in step order, within the recording's steps: anything
+  // else would be skipped or applied late by the rerun, silently.
+  const json& in = rec.at("inputs");
+  const uint64_t steps = rec.at("steps").get<uint64_t>();
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const Loc at = (Loc{a.rerun, ""} / "inputs")[i];
+    check_input_name(in[i].at("input").get<std::string>(), at / "input", game.input_names());
+    const uint64_t step = in[i].at("step").get<uint64_t>();
+    if (step > steps)
+      (at / "step")
+          .fail("step " + std::to_string(step) + " is after the recording's " +
+                std::to_string(steps) + " steps");
+    if (i > 0 && step < in[i - 1].at("step").get<uint64_t>())
+      (at / "step")
+          .fail("step " + std::to_string(step) + " comes before the previous input's " +
+                std::to_string(in[i - 1].at("step").get<uint64_t>()) +
+                " (inputs are in step order)");
+  }
   game.rerun(rec);
   const json out = game.recording(scene_file);
   const bool same = out["state_hash"] == rec.at("state_hash");
@@ -278,7 +308,7 @@ int play_command(const PlayArgs& a) {
   PluginLoader loader(plugin_search_dirs(scene.plugin_path));
   auto game = std::make_unique<PinballGame>(scene, loader);
   std::vector<Scripted> script;
-  if (!a.script.empty()) script = read_script(a.script);
+  if (!a.script.empty()) script = read_script(a.script, game->input_names());
 
   // The static table, pre-rendered once.
   const PixelMap map(scene_view(scene, game->backend()), a.width);

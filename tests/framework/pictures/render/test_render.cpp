@@ -359,6 +359,23 @@ TEST_CASE("play --record: a recording that cannot be written is exit 1, nothing 
   CHECK(files == 0);
 }
 
+TEST_CASE("play --script: an input the table does not have is exit 2 naming it") {
+  // Once ignored: the game ran without that press. Read before any window opens.
+  const fs::path dir = test::temp_dir("play-script-input");
+  test::write_file(dir / "script.json",
+                   R"([{"t": 0, "input": "left", "action": "press"},
+                       {"t": 0.1, "input": "flipper", "action": "press"}])");
+  const auto r = shell("SDL_VIDEODRIVER=dummy " + std::string(PINSIM_BIN) +
+                       " play " PINSIM_SOURCE_DIR "/configs/pinball.json --script " +
+                       (dir / "script.json").string() + " --seconds 0.2 --width 200");
+  INFO(r.output);
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output.c_str(),
+             Catch::Contains((dir / "script.json").string() +
+                             ": [1].input: unknown input 'flipper': this table's inputs are "
+                             "'plunger', 'left', 'right'"));
+}
+
 TEST_CASE("render and replay: a folder that is not a readable run is exit 2 naming it") {
   const fs::path empty = test::temp_dir("not-a-run");
   auto r = pinsim_cli("render " + empty.string());
@@ -459,7 +476,20 @@ TEST_CASE("play --rerun: a recording that cannot be used is exit 2 naming the fi
        "rec.json: inputs[0].step: expected a non-negative integer, got number -1"},
       {[](nlohmann::json& j) { j.erase("steps"); }, "rec.json: steps: required step count"},
       {[](nlohmann::json& j) { j["inputs"] = 3; }, "rec.json: inputs: expected a list of inputs"},
-      {[](nlohmann::json& j) { j.erase("scene"); }, "rec.json: scene: required scene file"}};
+      {[](nlohmann::json& j) { j.erase("scene"); }, "rec.json: scene: required scene file"},
+      // Inputs a rerun would skip or apply late, silently: an input the table lacks, a step
+      // past the recording's end, steps out of order.
+      {[](nlohmann::json& j) { j["inputs"][0]["input"] = "lefft"; },
+       "rec.json: inputs[0].input: unknown input 'lefft': this table's inputs are 'plunger', "
+       "'left', 'right'"},
+      {[](nlohmann::json& j) { j["inputs"][0]["step"] = 11; },
+       "rec.json: inputs[0].step: step 11 is after the recording's 10 steps"},
+      {[](nlohmann::json& j) {
+         j["inputs"][0]["step"] = 5;
+         j["inputs"].push_back({{"step", 4}, {"input", "left"}, {"action", "release"}});
+       },
+       "rec.json: inputs[1].step: step 4 comes before the previous input's 5 (inputs are in "
+       "step order)"}};
   for (const auto& [change, message] : cases) {
     nlohmann::json rec = good;
     change(rec);
