@@ -23,9 +23,7 @@ std::vector<std::string> with_backend(const std::string& file, const std::string
   if (backend.empty()) return overrides;
   std::string text = kDefaultSceneText, label = std::string("<embedded ") + kDefaultSceneName + ">";
   if (!file.empty()) {
-    std::ifstream in(file);
-    if (!in) return overrides;  // load_scene names the problem
-    text = read_json_text(in, file);
+    text = scene_file_text(file);  // the text load_scene parses next, read once
     label = file;
   }
   const nlohmann::json doc = parse_json_text(text, label);

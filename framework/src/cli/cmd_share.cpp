@@ -46,11 +46,11 @@ fs::path web_module() {
 }
 
 int share_command(const ShareArgs& a) {
-  // Loaded first: its read is bounded (the file may be a device that never ends).
   Scene scene = load_scene_or_default(a.scene, {});
-  // The scene's own text goes into the page (the default scene's when none is given).
+  // The scene's own text goes into the page (the default scene's when none is given): the
+  // text load_scene read (bounded, once: the file may be a pipe or a device).
   const std::string scene_text =
-      a.scene.empty() ? std::string(kDefaultSceneText) : read_text(a.scene);
+      a.scene.empty() ? std::string(kDefaultSceneText) : scene_file_text(a.scene);
   const std::string scene_file = a.scene.empty() ? std::string(kDefaultSceneName) : a.scene;
 
   const fs::path module = web_module();

@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <map>
+#include <mutex>
 #include <sstream>
 
 #include "core/bounded_read.hpp"
@@ -411,7 +413,11 @@ Scene parse_scene(const std::string& text, const std::string& label, const fs::p
   return s;
 }
 
-Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides) {
+const std::string& scene_file_text(const fs::path& file) {
+  static std::mutex mutex;
+  static std::map<std::string, std::string> texts;
+  const std::lock_guard<std::mutex> lock(mutex);
+  if (const auto it = texts.find(file.string()); it != texts.end()) return it->second;
   std::error_code ec;
   if (!fs::exists(file, ec)) throw SceneError(file.string() + ": scene file not found");
   if (fs::is_directory(file, ec))
@@ -419,8 +425,12 @@ Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides
   std::ifstream in(file);
   if (!in) throw SceneError(file.string() + ": cannot be read");
   // Bounded: the file may be a pipe (`run <(cmd)`) or a device that never ends.
-  const std::string text = read_json_text(in, file.string());
-  return parse_scene(text, file.string(), fs::absolute(file).parent_path(), overrides);
+  return texts.emplace(file.string(), read_json_text(in, file.string())).first->second;
+}
+
+Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides) {
+  return parse_scene(scene_file_text(file), file.string(), fs::absolute(file).parent_path(),
+                     overrides);
 }
 
 }  // namespace pinsim

@@ -61,6 +61,10 @@ struct Scene {
 
 /// Reads and parses a scene file. Overrides are "path=value" strings (path like
 /// "time.dt" or "forces[0].params.k"; value parsed as JSON, else taken as a string).
+/// The text of scene file `file`, read once per process (bounded, as every JSON file) and
+/// kept: a command that looks at the scene twice (`--backend`, `share`) must not read a pipe
+/// (`run <(cmd)`) twice, getting nothing the second time. SceneError if it cannot be read.
+const std::string& scene_file_text(const std::filesystem::path& file);
 Scene load_scene(const std::filesystem::path& file, const std::vector<std::string>& overrides = {});
 
 /// Parses scene text; `label` names it in messages, `base_dir` resolves relative paths.

@@ -253,6 +253,38 @@ TEST_CASE("limits: arrays, strings and particle counts have limits, raised from 
   CHECK(r.code == 0);
 }
 
+TEST_CASE("a scene on a pipe is read once, also when the command looks at it twice") {
+  // `run --backend NAME` reads the scene for its crosscheck params, then loads it: on a pipe
+  // the second read got nothing ("unexpected end of input", exit 2). Both now parse the
+  // text read once.
+  const auto dir = test::temp_dir("scene-pipe");
+  const auto r = test::shell("cat " PINSIM_SOURCE_DIR "/configs/pinball.json | " PINSIM_BIN
+                             " -q run /dev/stdin --backend box2d --set time.duration=0.01 "
+                             "--out " +
+                             (dir / "run").string() + " 2>&1");
+  INFO(r.output);
+  CHECK(r.code == 0);
+  const auto summary = nlohmann::json::parse(test::read_file(dir / "run" / "summary.json"));
+  CHECK(summary["status"] == "ok");
+  CHECK(summary["backend"] == "box2d");
+  // `share` put the scene's text into the page by reading the file again: from a pipe the
+  // page got an empty scene_text, with exit 0. A stand-in engine (the page only embeds its
+  // text; its .plugins file lists what is built in) keeps this test free of the web build.
+  test::write_file(dir / "engine.js", "/* stand-in engine */");
+  test::write_file(dir / "engine.plugins", "sdf box2d none gravity linear_spring damped_spring\n");
+  const auto s =
+      test::shell("cat " PINSIM_SOURCE_DIR "/configs/pinball.json | PINSIM_WEB_MODULE=" +
+                  (dir / "engine.js").string() + " " PINSIM_BIN " -q share /dev/stdin --out " +
+                  (dir / "page.html").string() + " 2>&1");
+  INFO(s.output);
+  REQUIRE(s.code == 0);
+  const std::string scene = test::read_file(PINSIM_SOURCE_DIR "/configs/pinball.json");
+  const std::string page = test::read_file(dir / "page.html");
+  // The page holds the scene text JSON-escaped: its first line is enough to find.
+  const std::string first_line = scene.substr(0, scene.find('\n'));
+  CHECK(page.find("\"scene_text\":\"" + first_line) != std::string::npos);
+}
+
 TEST_CASE(
     "limits: an input that never ends (a link to /dev/zero, a pipe) stops at the size limit") {
   // Reading the whole file before the 256 MiB check once took all memory on /dev/zero (a
