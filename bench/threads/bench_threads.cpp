@@ -3,9 +3,13 @@
 // contacts, 1,000,000 damped springs (a 708 x 708 grid's edges), and the small scenes that
 // must not get slower (one ball on the pinball table, the 16-particle blob). Prints CSV:
 // scene, particles, threads, steps, wall us per step (best of `repeats` runs), speed-up over
-// 1 thread, CPU us per step (all threads; the work, whatever else runs on the machine),
-// one force evaluation and one drift alone (wall us), state hash (equal across thread
-// counts, else the line says DIFFERS and the program exits 1).
+// 1 thread, process CPU us per step (every thread, spinning and waiting included; best of
+// the repeats), cpu_ratio = that CPU over the 1-thread CPU (1.0 when threads cost no extra
+// work; other processes on the machine hardly change it, unlike the wall time), the serial
+// fraction s of the 1-thread step (Simulation::profile: the time outside the parts that run
+// on threads; a lower bound, see StepProfile) and the Amdahl bound 1 / (s + (1 - s) / N) it
+// implies, one force evaluation and one drift alone (wall us), state hash (equal across
+// thread counts, else the line says DIFFERS and the program exits 1).
 //
 // A line "# load average: ..." (/proc/loadavg) follows each scene: on a shared machine the
 // ratios mean little when the load exceeds the cores.
@@ -104,26 +108,36 @@ json springs_1m() {
 struct Timing {
   double ms_per_step;
   double cpu_ms_per_step;  ///< process CPU time (every thread), best of the repeats
+  double serial;           ///< serial fraction of the steps (StepProfile), best repeat's
   uint64_t hash;
   double ms_forces;  ///< one compute_forces at the end state
   double ms_drift;   ///< one backend drift over dt from the end state
 };
 
-Timing time_case(const pinsim::Scene& scene, unsigned threads, uint64_t steps, int repeats) {
+/// `profile`: RunOptions::profile (four clock reads a step: not for the small scenes, whose
+/// step takes 0.1-4 us; their serial fraction prints as 1).
+Timing time_case(const pinsim::Scene& scene, unsigned threads, uint64_t steps, int repeats,
+                 bool profile) {
   pinsim::PluginLoader loader(pinsim::plugin_search_dirs(scene.plugin_path));
   pinsim::RunOptions o;
   o.threads = threads;
-  double best = 1e300, cpu = 1e300, forces = 0.0, drift = 0.0;
+  o.profile = profile;
+  double best = 1e300, cpu = 1e300, forces = 0.0, drift = 0.0, serial = 1.0;
   uint64_t hash = 0;
   for (int r = 0; r < repeats; ++r) {
     pinsim::Simulation sim(scene, loader, o);
     sim.step();  // warm-up: first touch of buffers, oneTBB's threads
+    const pinsim::StepProfile p0 = sim.profile();
     const std::clock_t c0 = std::clock();
     const auto a = std::chrono::steady_clock::now();
     for (uint64_t k = 1; k < steps; ++k) sim.step();
     const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - a).count();
     const double c = static_cast<double>(std::clock() - c0) / CLOCKS_PER_SEC;
-    best = std::min(best, 1e3 * s / static_cast<double>(steps - 1));
+    const pinsim::StepProfile& p1 = sim.profile();
+    const double ms = 1e3 * s / static_cast<double>(steps - 1);
+    if (ms < best && profile)
+      serial = 1.0 - (p1.threaded_s - p0.threaded_s) / std::max(1e-300, p1.step_s - p0.step_s);
+    best = std::min(best, ms);
     cpu = std::min(cpu, 1e3 * c / static_cast<double>(steps - 1));
     hash = sim.state().hash();
     if (r + 1 < repeats) continue;
@@ -147,7 +161,7 @@ Timing time_case(const pinsim::Scene& scene, unsigned threads, uint64_t steps, i
       sim.drift(copy, scene.dt);
     });
   }
-  return {best, cpu, hash, forces, drift};
+  return {best, cpu, serial, hash, forces, drift};
 }
 
 }  // namespace
@@ -164,8 +178,8 @@ int main(int argc, char** argv) {
                                    {"one_ball_pinball", nullptr, configs + "/pinball.json", 20000},
                                    {"blob_16", nullptr, configs + "/blob_drop.json", 6000}};
   std::printf(
-      "scene,particles,threads,steps,us_per_step,speedup,cpu_us_per_step,us_forces,us_drift,state_"
-      "hash\n");
+      "scene,particles,threads,steps,us_per_step,speedup,cpu_us_per_step,cpu_ratio,serial_"
+      "fraction,amdahl_bound,us_forces,us_drift,state_hash\n");
   int status = 0;
   for (const Case& c : cases) {
     if (!only.empty() && c.name != only) continue;
@@ -174,15 +188,19 @@ int main(int argc, char** argv) {
                           : pinsim::parse_scene(c.scene.dump(), c.name + ".json", configs);
     const uint64_t steps =
         std::min(scene.steps(), std::max<uint64_t>(3, static_cast<uint64_t>(scale * c.steps)));
-    const Timing one = time_case(scene, 1, steps, repeats);
+    const bool profile = !c.scene.is_null();  // the two large scenes
+    const Timing one = time_case(scene, 1, steps, repeats, profile);
     for (unsigned t : {1u, n}) {
-      const Timing m = t == 1 ? one : time_case(scene, t, steps, repeats);
+      const Timing m = t == 1 ? one : time_case(scene, t, steps, repeats, profile);
       const bool same = m.hash == one.hash;
       if (!same) status = 1;
-      std::printf("%s,%zu,%u,%llu,%.3f,%.2f,%.3f,%.3f,%.3f,%016llx%s\n", c.name.c_str(),
-                  scene.particles.size(), t, static_cast<unsigned long long>(steps),
+      // Amdahl: the serial fraction (measured with 1 thread) runs alone, the rest on t threads
+      const double amdahl = 1.0 / (one.serial + (1.0 - one.serial) / t);
+      std::printf("%s,%zu,%u,%llu,%.3f,%.2f,%.3f,%.3f,%.4f,%.2f,%.3f,%.3f,%016llx%s\n",
+                  c.name.c_str(), scene.particles.size(), t, static_cast<unsigned long long>(steps),
                   1e3 * m.ms_per_step, one.ms_per_step / m.ms_per_step, 1e3 * m.cpu_ms_per_step,
-                  1e3 * m.ms_forces, 1e3 * m.ms_drift, static_cast<unsigned long long>(m.hash),
+                  m.cpu_ms_per_step / one.cpu_ms_per_step, one.serial, amdahl, 1e3 * m.ms_forces,
+                  1e3 * m.ms_drift, static_cast<unsigned long long>(m.hash),
                   same ? "" : " DIFFERS");
       std::fflush(stdout);
       if (n == 1) break;

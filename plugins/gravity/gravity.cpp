@@ -61,12 +61,13 @@ void Gravity::add_force(const StateView& s, ForceOut& f) const {
         if (w > 0.0) f.col(p) += g_ / w;
       }
     };
-    if (!increasing_ || particles_.size() <= kParticleChunk) {
+    if (!increasing_ || particles_.size() < kParallelItems) {
       add(0, particles_.size());  // a particle listed twice gets g twice, one after the other
       return;
     }
-    for_chunks(particles_.size(), kParticleChunk,
-               [&](std::size_t, std::size_t b, std::size_t e) { add(b, e); });
+    for_chunks(
+        particles_.size(), kParticleChunk,
+        [&](std::size_t, std::size_t b, std::size_t e) { add(b, e); }, Schedule::Even);
     return;
   }
   const double h = 0.5 * (alpha_ - 2.0);

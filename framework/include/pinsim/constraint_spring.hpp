@@ -122,15 +122,18 @@ class ConstraintSpring {
         }
       }
     });
-    for_chunks(shared_.size(), kChunk, [&](std::size_t, std::size_t b, std::size_t e) {
-      for (std::size_t r = b; r < e; ++r) {
-        const uint32_t q = shared_[r];
-        for (uint32_t j = shared_first_[r]; j < shared_first_[r + 1]; ++j) {
-          out[2 * q] -= buf[2 * j];
-          out[2 * q + 1] -= buf[2 * j + 1];
-        }
-      }
-    });
+    for_chunks(
+        shared_.size(), kParticleChunk,
+        [&](std::size_t, std::size_t b, std::size_t e) {
+          for (std::size_t r = b; r < e; ++r) {
+            const uint32_t q = shared_[r];
+            for (uint32_t j = shared_first_[r]; j < shared_first_[r + 1]; ++j) {
+              out[2 * q] -= buf[2 * j];
+              out[2 * q + 1] -= buf[2 * j + 1];
+            }
+          }
+        },
+        Schedule::Even);
   }
 
   /// Elements from which add_force runs in parallel when threads are available: below it

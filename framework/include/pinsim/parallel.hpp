@@ -37,12 +37,26 @@ inline int available_threads() {
 #endif
 }
 
-/// Items per chunk for loops that do a few arithmetic operations per particle (the
-/// integrators' updates, the step checks, uniform gravity): below two chunks such a loop runs
-/// serially. A parallel loop costs about 10 us more than its work (waking oneTBB's threads);
-/// 32768 particles take 15-50 us in these loops, so smaller states gain nothing from threads
-/// (10,000 balls: 57 us of such loops per step serially, 130 us with 8192-particle chunks).
-inline constexpr std::size_t kParticleChunk = 32768;
+/// Items per chunk of the per-particle loops (the integrators' updates, the step checks and
+/// their sums, uniform gravity). With Schedule::Even each thread takes one run of
+/// consecutive chunks, so a small chunk costs no extra tasks; it fixes only how sums are
+/// grouped (one partial sum per chunk, added in chunk order).
+inline constexpr std::size_t kParticleChunk = 1024;
+
+/// Items from which Schedule::Even loops run on threads: below it (one ball, a small blob)
+/// the serial loop, with nothing else on the way. Waking a second thread costs a few
+/// microseconds; 4096 particles take 2-10 us in these loops.
+inline constexpr std::size_t kParallelItems = 4096;
+
+/// How for_chunks hands its chunks to threads; either gives the same bits.
+enum class Schedule {
+  /// every chunk one task, taken by whichever thread is free: for chunks whose cost varies
+  /// (a particle's march, a spring chunk)
+  Dynamic,
+  /// each thread one run of consecutive chunks (tbb::static_partitioner), serial below
+  /// kParallelItems items: for cheap loops whose chunks all cost the same
+  Even,
+};
 
 /// Number of chunks of `chunk` items in [0, n).
 inline std::size_t chunk_count(std::size_t n, std::size_t chunk) {
@@ -50,11 +64,13 @@ inline std::size_t chunk_count(std::size_t n, std::size_t chunk) {
 }
 
 /// Calls body(c, begin, end) once for each chunk c of [0, n): [c chunk, min(n, (c+1) chunk)),
-/// in parallel when more than one thread is available and there is more than one chunk, else
-/// in order on the calling thread. An exception from a body reaches the caller (with threads,
-/// one of them), after the running chunks end.
+/// in parallel when more than one thread is available and there is more than one chunk (and,
+/// for Schedule::Even, at least kParallelItems items), else in order on the calling thread.
+/// An exception from a body reaches the caller (with threads, one of them), after the running
+/// chunks end.
 template <class Body>
-void for_chunks(std::size_t n, std::size_t chunk, Body&& body) {
+void for_chunks(std::size_t n, std::size_t chunk, Body&& body,
+                Schedule schedule = Schedule::Dynamic) {
   if (n <= chunk) {  // one chunk (or none): the serial loop, nothing else on the way
     if (n > 0) body(std::size_t{0}, std::size_t{0}, n);
     return;
@@ -62,16 +78,20 @@ void for_chunks(std::size_t n, std::size_t chunk, Body&& body) {
   const std::size_t chunks = chunk_count(n, chunk);
   auto run = [&](std::size_t c) { body(c, c * chunk, std::min(n, (c + 1) * chunk)); };
 #ifdef PINSIM_WITH_TBB
-  if (chunks > 1 && available_threads() > 1) {
-    // simple_partitioner with grain 1: every chunk is one task, whatever the thread count
-    tbb::parallel_for(
-        tbb::blocked_range<std::size_t>(0, chunks, 1),
-        [&](const tbb::blocked_range<std::size_t>& r) {
-          for (std::size_t c = r.begin(); c != r.end(); ++c) run(c);
-        },
-        tbb::simple_partitioner());
+  const bool even = schedule == Schedule::Even;
+  if ((!even || n >= kParallelItems) && available_threads() > 1) {
+    auto range = [&](const tbb::blocked_range<std::size_t>& r) {
+      for (std::size_t c = r.begin(); c != r.end(); ++c) run(c);
+    };
+    const tbb::blocked_range<std::size_t> all(0, chunks, 1);
+    if (even)  // one run of chunks per thread: the fewest tasks
+      tbb::parallel_for(all, range, tbb::static_partitioner());
+    else  // grain 1: every chunk is one task, whatever the thread count
+      tbb::parallel_for(all, range, tbb::simple_partitioner());
     return;
   }
+#else
+  (void)schedule;
 #endif
   for (std::size_t c = 0; c < chunks; ++c) run(c);
 }

@@ -13,14 +13,17 @@
 namespace pinsim {
 
 /// Calls body(begin, count) for fixed chunks of kParticleChunk of the particles [0, n), on
-/// threads when there are several chunks (pinsim/parallel.hpp). For per-particle updates
-/// that read and write only their own particles: the bits do not depend on the chunks.
+/// threads from kParallelItems particles (pinsim/parallel.hpp, Schedule::Even: one run of
+/// chunks per thread). For per-particle updates that read and write only their own
+/// particles: the bits do not depend on the chunks.
 template <class Body>
 void per_particle(Eigen::Index n, Body&& body) {
-  for_chunks(static_cast<std::size_t>(n), kParticleChunk,
-             [&](std::size_t, std::size_t b, std::size_t e) {
-               body(static_cast<Eigen::Index>(b), static_cast<Eigen::Index>(e - b));
-             });
+  for_chunks(
+      static_cast<std::size_t>(n), kParticleChunk,
+      [&](std::size_t, std::size_t b, std::size_t e) {
+        body(static_cast<Eigen::Index>(b), static_cast<Eigen::Index>(e - b));
+      },
+      Schedule::Even);
 }
 
 /// a = M^-1 f per particle (pinned particles, inv_mass 0, get a = 0).

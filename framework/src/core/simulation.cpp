@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <chrono>
 #include <cmath>
 #include <thread>
 #ifdef PINSIM_WITH_TBB
@@ -16,6 +17,24 @@
 
 namespace pinsim {
 namespace {
+
+/// Adds the wall time of its scope to *to, when to is not null (RunOptions::profile).
+class ScopeTime {
+ public:
+  explicit ScopeTime(double* to) : to_(to) {
+    if (to_ != nullptr) t0_ = std::chrono::steady_clock::now();
+  }
+  ~ScopeTime() {
+    if (to_ != nullptr)
+      *to_ += std::chrono::duration<double>(std::chrono::steady_clock::now() - t0_).count();
+  }
+  ScopeTime(const ScopeTime&) = delete;
+  ScopeTime& operator=(const ScopeTime&) = delete;
+
+ private:
+  double* to_;
+  std::chrono::steady_clock::time_point t0_;
+};
 
 void emit_event(void* ctx, const pinsim_event* e) {
   static_cast<std::vector<pinsim_event>*>(ctx)->push_back(*e);
@@ -74,7 +93,10 @@ unsigned resolve_threads(unsigned requested) {
 }
 
 Simulation::Simulation(const Scene& scene, PluginLoader& loader, const RunOptions& options)
-    : scene_(scene), state_(scene.initial_state()), threads_(resolve_threads(options.threads)) {
+    : scene_(scene),
+      state_(scene.initial_state()),
+      threads_(resolve_threads(options.threads)),
+      profiling_(options.profile) {
 #ifdef PINSIM_WITH_TBB
   // The plugins' parallel loops (oneTBB) run on at most threads_ threads while this
   // simulation lives: a process-wide limit, set once, so a step pays nothing for it (a
@@ -119,8 +141,9 @@ void Simulation::set_input(const std::string& name, bool pressed) {
 }
 
 void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f) {
+  const ScopeTime timed(profiling_ ? &profile_.threaded_s : nullptr);
   const Eigen::Index n = s.x.cols();
-  const bool one_chunk = n <= static_cast<Eigen::Index>(kParticleChunk);
+  const bool one_chunk = n < static_cast<Eigen::Index>(kParallelItems);
   if (one_chunk) {  // the serial code, as before threads (a one-ball step is 0.2 us)
     f.setZero(2, n);
   } else {
@@ -144,11 +167,25 @@ void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f) {
 }
 
 void Simulation::drift(State& s, double dt) {
+  const ScopeTime timed(profiling_ ? &profile_.threaded_s : nullptr);
   const pinsim_event_sink sink{&events_, &emit_event};
   const bool own = &s == &state_;
   if (own) checks_.before_drift(s);
   backend_->advance(s, dt, &sink);
   if (own) checks_.after_drift(s);
+}
+
+void Simulation::kick_drift(State& s, const Eigen::Matrix2Xd& f, double h) {
+  if (&s != &state_) {
+    kick(s, f, h);
+    drift(s, h);
+    return;
+  }
+  const ScopeTime timed(profiling_ ? &profile_.threaded_s : nullptr);
+  checks_.kick_before_drift(s, f, h);
+  const pinsim_event_sink sink{&events_, &emit_event};
+  backend_->advance(s, h, &sink);
+  checks_.after_last_drift();
 }
 
 void Simulation::assemble_jacobians(const State& s, Eigen::SparseMatrix<double>& dfdx,
@@ -269,11 +306,18 @@ bool Simulation::energy_complete() const {
 void Simulation::step() {
   // Time at the end of the step from the step count, so t carries no accumulated rounding.
   const double t_end = static_cast<double>(step_ + 1) * scene_.dt;
+  const ScopeTime timed(profiling_ ? &profile_.step_s : nullptr);
+  if (profiling_) ++profile_.steps;
   events_.clear();
   // Plugins' parallel loops split their work in fixed chunks and combine them in a fixed
   // order, so the step does not depend on threads_ (docs/threads.md).
   integrator_->step(*this, scene_.dt);
-  if (const StepFinding found = checks_.check(state_)) throw_step_finding(found, t_end);
+  StepFinding found;
+  {
+    const ScopeTime checked(profiling_ ? &profile_.threaded_s : nullptr);
+    found = checks_.check(state_);
+  }
+  if (found) throw_step_finding(found, t_end);
   state_.t = t_end;
   ++step_;
   if (step_ % scene_.energy_every == 0) check_energy();

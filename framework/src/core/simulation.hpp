@@ -59,6 +59,21 @@ struct RunOptions {
   /// kMaxThreads; 0 = the machine's cores. Results are bit-identical for every value
   /// (docs/threads.md).
   unsigned threads = 0;
+  /// Time the steps and their parts that run on threads (Simulation::profile; for
+  /// pinsim_bench_threads). Off: one branch per part.
+  bool profile = false;
+};
+
+/// Wall time of the steps so far (RunOptions::profile), and of the parts of them that run
+/// their loops on threads when there are threads: compute_forces, the drift (with
+/// kick_drift's kick) and the after-step check. The rest (the energy check, the
+/// integrators' own passes between those calls, the step's bookkeeping) is serial. Serial
+/// work inside a part (a plugin's loop without for_chunks, the sdf backend's chunk sums)
+/// counts as threaded, so 1 - threaded / step is a lower bound of the serial fraction.
+struct StepProfile {
+  uint64_t steps = 0;
+  double step_s = 0.0;
+  double threaded_s = 0.0;
 };
 
 /// The most threads a run may ask for (--threads).
@@ -91,6 +106,11 @@ class Simulation {
   void compute_forces(const State& s, Eigen::Matrix2Xd& f);
   /// The backend's position update over dt; appends events.
   void drift(State& s, double dt);
+  /// Symplectic Euler after its forces f: the kick v += h M^-1 f, then the drift over h, which
+  /// must end the step (nothing changes s.v after it before step()'s check). The same bits
+  /// as kick() then drift(), with one pass over the particles fewer on each side of the drift
+  /// (the kick keeps the velocities entering it; the check reads those leaving it from s).
+  void kick_drift(State& s, const Eigen::Matrix2Xd& f, double h);
   /// Force Jacobians at s, 2N x 2N over dofs (2*particle + component): dfdx = sum df/dx,
   /// dfdv = sum df/dv. Forces without a Jacobian get central finite differences of their
   /// add_force (a one-time warning names the plugin); df/dv is differenced only for forces
@@ -139,6 +159,8 @@ class Simulation {
   const std::string& integrator_name() const { return integrator_name_; }
   /// Threads the steps run on (RunOptions::threads resolved; 1 without oneTBB).
   unsigned threads() const { return threads_; }
+  /// The times RunOptions::profile asked for (zeros without it).
+  const StepProfile& profile() const { return profile_; }
   /// The integrator's own figures for summary.json (implicit Euler: its linear solves), or
   /// null when it has none.
   nlohmann::json integrator_stats() const;
@@ -160,6 +182,8 @@ class Simulation {
   Scene scene_;
   State state_;
   unsigned threads_ = 1;
+  bool profiling_ = false;
+  StepProfile profile_;
   std::unique_ptr<ThreadLimit> limit_;
   std::vector<std::unique_ptr<ForceInstance>> forces_;
   std::unique_ptr<BackendInstance> backend_;

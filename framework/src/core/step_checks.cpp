@@ -61,11 +61,19 @@ StepFinding StepChecks::check(const State& s) {
     v_out_ = s.v;
   }
   drifted_ = false;
+  // after_last_drift: the velocities leaving the drift are s.v (the same values a copy
+  // would hold); the findings below read v_out_, filled only then
+  const bool out_is_v = out_is_v_;
+  out_is_v_ = false;
+  auto finding = [&](StepFinding (StepChecks::*what)(const State&) const) {
+    if (out_is_v) v_out_ = s.v;
+    return (this->*what)(s);
+  };
   const Eigen::Index n = s.x.cols();
   const double* x = s.x.data();
   const double* v = s.v.data();
   const double* vin = v_in_.data();
-  const double* vout = v_out_.data();
+  const double* vout = out_is_v ? v : v_out_.data();
   const double* hm = half_mass_.data();
   const double* kp = k_.data();
   double* kn = k_next_.data();
@@ -73,14 +81,17 @@ StepFinding StepChecks::check(const State& s) {
   // some coordinate is not finite (one pass, no branch). The particles run in fixed chunks
   // (pinsim/parallel.hpp), each summing into its own slot; the slots are then combined in
   // chunk order, so the sums do not depend on the thread count (with one chunk, up to
-  // kParticleChunk particles, they are the plain serial sums).
+  // kParticleChunk particles, they are the plain serial sums; below kParallelItems the chunks
+  // run in order on this thread).
   const auto total = static_cast<std::size_t>(n);
   // sum(b, e) over the particles [b, e), all the chunks' sums added in chunk order
   auto chunked = [&](auto&& sum) {
     if (total <= kParticleChunk) return sum(std::size_t{0}, total);  // the serial loop
     parts_.assign(chunk_count(total, kParticleChunk), Part{});
-    for_chunks(total, kParticleChunk,
-               [&](std::size_t c, std::size_t b, std::size_t e) { parts_[c] = sum(b, e); });
+    for_chunks(
+        total, kParticleChunk,
+        [&](std::size_t c, std::size_t b, std::size_t e) { parts_[c] = sum(b, e); },
+        Schedule::Even);
     Part all;
     for (const Part& p : parts_) {
       all.poison += p.poison;
@@ -107,8 +118,8 @@ StepFinding StepChecks::check(const State& s) {
       }
       return p;
     });
-    if (!(all.poison == 0.0)) return non_finite(s);
-    if (all.over != 0 && steps_ > 0) return growth(s);
+    if (!(all.poison == 0.0)) return finding(&StepChecks::non_finite);
+    if (all.over != 0 && steps_ > 0) return finding(&StepChecks::growth);
     scale_ = std::max({scale_, all.k_sum, all.kf_sum});
     k_.swap(k_next_);
   } else {
@@ -117,19 +128,35 @@ StepFinding StepChecks::check(const State& s) {
       for (std::size_t i = 2 * b; i < 2 * e; ++i) p.poison += 0.0 * x[i] + 0.0 * v[i];
       return p;
     });
-    if (!(all.poison == 0.0)) return non_finite(s);
+    if (!(all.poison == 0.0)) return finding(&StepChecks::non_finite);
   }
   ++steps_;
   return {};
 }
 
+void StepChecks::kick_before_drift(State& s, const Eigen::Matrix2Xd& f, double h) {
+  v_in_.resize(2, s.v.cols());
+  // per particle: the kick of integrators.hpp's kick(), then the copy
+  for_chunks(
+      static_cast<std::size_t>(s.v.cols()), kParticleChunk,
+      [&](std::size_t, std::size_t b, std::size_t e) {
+        for (auto i = static_cast<Eigen::Index>(b); i < static_cast<Eigen::Index>(e); ++i) {
+          s.v.col(i) += (h * s.inv_mass[i]) * f.col(i);
+          v_in_.col(i) = s.v.col(i);
+        }
+      },
+      Schedule::Even);
+}
+
 void StepChecks::copy_chunks(const Eigen::Matrix2Xd& from, Eigen::Matrix2Xd& to) {
   to.resize(2, from.cols());
-  for_chunks(static_cast<std::size_t>(from.cols()), kParticleChunk,
-             [&](std::size_t, std::size_t b, std::size_t e) {
-               const auto i = static_cast<Eigen::Index>(b), k = static_cast<Eigen::Index>(e - b);
-               to.middleCols(i, k) = from.middleCols(i, k);
-             });
+  for_chunks(
+      static_cast<std::size_t>(from.cols()), kParticleChunk,
+      [&](std::size_t, std::size_t b, std::size_t e) {
+        const auto i = static_cast<Eigen::Index>(b), k = static_cast<Eigen::Index>(e - b);
+        to.middleCols(i, k) = from.middleCols(i, k);
+      },
+      Schedule::Even);
 }
 
 namespace {

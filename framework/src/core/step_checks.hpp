@@ -41,6 +41,15 @@ class StepChecks {
     copy(s.v, v_out_);
     drifted_ = true;
   }
+  /// Symplectic Euler's kick v += h M^-1 f and before_drift in one pass over the particles:
+  /// the kicked velocity is the one entering the drift.
+  void kick_before_drift(State& s, const Eigen::Matrix2Xd& f, double h);
+  /// after_drift for a drift that ends the step (nothing changes s.v before check()): the
+  /// velocities leaving it are s.v itself, which check() reads instead of a copy.
+  void after_last_drift() {
+    drifted_ = true;
+    out_is_v_ = true;
+  }
   /// After the step: finite x and v, then the growth bound. Only reads the state; on a
   /// finding the recorded energies stay those of the last good step.
   StepFinding check(const State& s);
@@ -50,7 +59,7 @@ class StepChecks {
   StepFinding growth(const State& s) const;
   /// to = from, in fixed chunks of particles (on threads for large states).
   static void copy(const Eigen::Matrix2Xd& from, Eigen::Matrix2Xd& to) {
-    if (from.cols() <= static_cast<Eigen::Index>(kParticleChunk))
+    if (from.cols() < static_cast<Eigen::Index>(kParallelItems))
       to = from;
     else
       copy_chunks(from, to);
@@ -68,6 +77,7 @@ class StepChecks {
   double scale_ = 0.0;  ///< S_n
   uint64_t steps_ = 0;
   bool drifted_ = false;
+  bool out_is_v_ = false;       ///< after_last_drift: v_out_ is not filled, s.v holds it
   Eigen::VectorXd half_mass_;   ///< m_i / 2, 0 for pinned particles
   Eigen::VectorXd k_, k_next_;  ///< K_i^n, and K_i^{n+1} being computed
   Eigen::Matrix2Xd v_in_, v_out_;
