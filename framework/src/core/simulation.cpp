@@ -312,11 +312,10 @@ void Simulation::step() {
   // Plugins' parallel loops split their work in fixed chunks and combine them in a fixed
   // order, so the step does not depend on threads_ (docs/threads.md).
   integrator_->step(*this, scene_.dt);
-  StepFinding found;
-  {
+  const StepFinding found = [&] {  // (returned in place: no copy of the finding)
     const ScopeTime checked(profiling_ ? &profile_.threaded_s : nullptr);
-    found = checks_.check(state_);
-  }
+    return checks_.check(state_);
+  }();
   if (found) throw_step_finding(found, t_end);
   state_.t = t_end;
   ++step_;
