@@ -430,10 +430,13 @@ void push_event(void* ctx, const pinsim_event* e) {
 
 std::size_t SdfBackend::too_fast(const MutableState& s, double dt, bool threads) {
   // the first particle of [b, e) with finite mass moving beyond the limit, else e
-  auto first = [&](std::size_t b, std::size_t e) {
+  const double* v = s.v.data();  // (plain pointers: no reloads of the maps' members)
+  const double* w = s.inv_mass.data();
+  auto first = [=](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i) {
-      if (!(s.inv_mass[i] > 0.0)) continue;  // pinned particles do not move
-      if (!(std::abs(s.v(0, i)) * dt <= kMaxMagnitude && std::abs(s.v(1, i)) * dt <= kMaxMagnitude))
+      if (!(w[i] > 0.0)) continue;  // pinned particles do not move
+      if (!(std::abs(v[2 * i]) * dt <= kMaxMagnitude &&
+            std::abs(v[2 * i + 1]) * dt <= kMaxMagnitude))
         return i;
     }
     return e;
