@@ -65,11 +65,12 @@ struct RunOptions {
 };
 
 /// Wall time of the steps so far (RunOptions::profile), and of the parts of them that run
-/// their loops on threads when there are threads: compute_forces, the drift (with
-/// kick_drift's kick) and the after-step check. The rest (the energy check, the
-/// integrators' own passes between those calls, the step's bookkeeping) is serial. Serial
-/// work inside a part (a plugin's loop without for_chunks, the sdf backend's chunk sums)
-/// counts as threaded, so 1 - threaded / step is a lower bound of the serial fraction.
+/// their loops on threads when there are threads: the integrator's step (its forces, its
+/// per-particle passes, the drift) and the after-step check. The rest (the energy check
+/// every checks.energy_every steps, the bookkeeping of step(); not the recorder's work) is
+/// serial. Serial work inside a part (implicit Euler's solve, a plugin's loop without
+/// for_chunks, the sdf backend's chunk sums) counts as threaded, so 1 - threaded / step is
+/// a lower bound of the serial fraction.
 struct StepProfile {
   uint64_t steps = 0;
   double step_s = 0.0;
