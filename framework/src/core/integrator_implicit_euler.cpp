@@ -2,14 +2,15 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseLU>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <utility>
 #include <vector>
 
+#include "core/block_sparse_matrix.hpp"
 #include "core/integrators.hpp"
 #include "core/simulation.hpp"
 
@@ -60,7 +61,7 @@ class ImplicitEuler : public Integrator {
     State& s = sim.state();
     sim.compute_forces(s, f_);
     const Eigen::Index n = 2 * static_cast<Eigen::Index>(s.size());
-    const Eigen::Map<const Eigen::VectorXd> f(f_.data(), n), v0(s.v.data(), n);
+    const Eigen::Map<const Eigen::VectorXd> v0(s.v.data(), n);
 
     if (m_.size() != n) m_.resize(n);
     for (Eigen::Index i = 0; i < n; ++i) {
@@ -71,10 +72,14 @@ class ImplicitEuler : public Integrator {
     // A, and K v_n straight from the entries; b = h (f_n + h K v_n), pinned rows zeroed.
     if (kv_.size() != n) kv_.resize(n);
     assemble(sim, s, n, h, v0);
-    if (b_.size() != n) b_.resize(n);
-    b_ = h * (f + h * kv_);
-    for (Eigen::Index i = 0; i < n; ++i)
-      if (!(m[i] > 0.0)) b_[i] = 0.0;
+    for (Eigen::VectorXd* x : {&b_, &r_, &r0_, &p_, &v_, &y_, &z_, &s_, &t_, &inv_diag_})
+      if (x->size() != n) x->resize(n);
+    const double* f = f_.data();
+    double bb = 0.0;
+    for (Eigen::Index i = 0; i < n; ++i) {
+      b_[i] = m[i] > 0.0 ? h * (f[i] + h * kv_[i]) : 0.0;
+      bb += b_[i] * b_[i];
+    }
     const Eigen::VectorXd& b = b_;
     const bool symmetric = is_symmetric();
     const Eigen::Index max_iterations = options_.cg_max_iterations > 0
@@ -85,46 +90,41 @@ class ImplicitEuler : public Integrator {
     // Only a guess that beats 0 (|b - A dv_| < |b|): when the velocities shrink fast (a very
     // stiff, strongly damped step) the old dv is far larger than the new one, and CG would
     // reach the small answer as a difference of large numbers, losing its digits.
+    // The guess's residual is the Krylov solve's first residual.
     if (dv_.size() != n) dv_.setZero(n);
-    r_.noalias() = b - A_ * dv_;
-    if (!(r_.squaredNorm() < b.squaredNorm())) dv_.setZero();
-    Eigen::Index iterations = 0;
-    double residual = 0.0;
-    bool converged = false;
+    const double rr = residual_of(dv_, r_);
+    if (!(rr < bb)) {
+      dv_.setZero();
+      r_ = b;
+    }
+    Solve out;
     const char* method = symmetric ? "conjugate gradients" : "BiCGSTAB";
-    // One solve path for both Krylov methods (Eigen gives them the same interface).
-    auto krylov = [&](auto& solver) {
-      solver.setTolerance(1e-12);
-      solver.setMaxIterations(max_iterations);
-      solver.compute(A_);
-      dv_ = solver.solveWithGuess(b, dv_);
-      iterations = solver.iterations();
-      residual = solver.error();
-      converged = solver.info() == Eigen::Success;
-    };
     if (symmetric) {
-      krylov(cg_);
+      out = cg(bb, max_iterations);
     } else {
       ++bicgstab_solves_;
-      krylov(bicgstab_);
+      out = bicgstab(bb, max_iterations);
     }
+    Eigen::Index iterations = out.iterations;
+    double residual = out.residual;
     const double krylov_residual = residual;
     Eigen::VectorXd& dv = dv_;
     ++solves_;
     cg_iterations_ += static_cast<uint64_t>(iterations);
     cg_iterations_max_ = std::max(cg_iterations_max_, static_cast<uint64_t>(iterations));
-    if (!converged) {
+    if (!out.converged) {
       spdlog::debug(
           "implicit_euler: {} stopped at residual {:.3g} after {} iterations; solving "
           "with sparse LU",
           method, krylov_residual, iterations);
       ++lu_fallbacks_;
+      const Eigen::SparseMatrix<double> a = A_.to_eigen();
       Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
-      lu.compute(A_);
+      lu.compute(a);
       const bool factored = lu.info() == Eigen::Success;
       if (factored) dv = lu.solve(b);
       const double bn = b.norm();
-      residual = factored ? (A_ * dv - b).norm() / (bn > 0.0 ? bn : 1.0) : HUGE_VAL;
+      residual = factored ? (a * dv - b).norm() / (bn > 0.0 ? bn : 1.0) : HUGE_VAL;
       if (!(residual <= 1e-8))
         throw NumericError(
             NumericError::Kind::SolverFailure,
@@ -142,62 +142,253 @@ class ImplicitEuler : public Integrator {
     sim.drift(s, h);
   }
 
+  /// r = b_ - A x; returns |r|^2.
+  double residual_of(const Eigen::VectorXd& x, Eigen::VectorXd& r) const {
+    const double* b = b_.data();
+    double* out = r.data();
+    double sum[2] = {0.0, 0.0};
+    A_.multiply(x.data(), [&](int64_t i, double y0, double y1) {
+      out[2 * i] = b[2 * i] - y0;
+      out[2 * i + 1] = b[2 * i + 1] - y1;
+      sum[0] += out[2 * i] * out[2 * i];
+      sum[1] += out[2 * i + 1] * out[2 * i + 1];
+    });
+    return sum[0] + sum[1];
+  }
+
+  struct Solve {
+    Eigen::Index iterations = 0;
+    double residual = 0.0;  ///< |r| / |b| of the iteration's own residual r
+    bool converged = false;
+  };
+
+  /// The Jacobi preconditioner: 1 / a_ii (1 where a_ii = 0), as Eigen's
+  /// DiagonalPreconditioner.
+  void jacobi() {
+    for (int64_t i = 0; i < A_.rows(); ++i) {
+      const double* d = A_.value.data() + 4 * diag_block_[static_cast<std::size_t>(i)];
+      inv_diag_[2 * i] = d[0] != 0.0 ? 1.0 / d[0] : 1.0;
+      inv_diag_[2 * i + 1] = d[3] != 0.0 ? 1.0 / d[3] : 1.0;
+    }
+  }
+
+  /// Preconditioned conjugate gradients on A dv_ = b_ from dv_, whose residual is r_ (Eigen's
+  /// ConjugateGradient, same steps and stopping rule: |r|^2 < max(1e-24 |b|^2, min normal)),
+  /// with A's product a gather by rows and the vector updates fused into three passes per
+  /// iteration. Sums over dofs add even and odd dofs apart, then the two.
+  Solve cg(double bb, Eigen::Index max_iterations) {
+    Solve out;
+    const Eigen::Index n = b_.size();
+    if (bb == 0.0) {
+      dv_.setZero();
+      out.converged = true;
+      return out;
+    }
+    jacobi();
+    double* x = dv_.data();
+    double* r = r_.data();
+    double* p = p_.data();
+    double* q = v_.data();  // A p
+    double* z = z_.data();
+    const double* d = inv_diag_.data();
+    const double threshold = std::max(1e-24 * bb, std::numeric_limits<double>::min());
+    double rr[2] = {0.0, 0.0}, rz[2] = {0.0, 0.0};
+    for (Eigen::Index i = 0; i < n; ++i) {
+      p[i] = d[i] * r[i];
+      rr[i & 1] += r[i] * r[i];
+      rz[i & 1] += r[i] * p[i];
+    }
+    double r2 = rr[0] + rr[1], abs_new = rz[0] + rz[1];
+    Eigen::Index it = 0;
+    while (!(r2 < threshold) && it < max_iterations && r2 == r2) {
+      double pq[2] = {0.0, 0.0};
+      A_.multiply(p, [&](int64_t i, double y0, double y1) {
+        q[2 * i] = y0;
+        q[2 * i + 1] = y1;
+        pq[0] += p[2 * i] * y0;
+        pq[1] += p[2 * i + 1] * y1;
+      });
+      const double alpha = abs_new / (pq[0] + pq[1]);
+      rr[0] = rr[1] = rz[0] = rz[1] = 0.0;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        x[i] += alpha * p[i];
+        r[i] -= alpha * q[i];
+        z[i] = d[i] * r[i];
+        rr[i & 1] += r[i] * r[i];
+        rz[i & 1] += r[i] * z[i];
+      }
+      ++it;
+      r2 = rr[0] + rr[1];
+      if (r2 < threshold) break;
+      const double abs_old = abs_new;
+      abs_new = rz[0] + rz[1];
+      const double beta = abs_new / abs_old;
+      for (Eigen::Index i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
+    }
+    out.iterations = it;
+    out.residual = std::sqrt(r2 / bb);
+    out.converged = out.residual <= 1e-12;
+    return out;
+  }
+
+  /// Right-preconditioned BiCGSTAB on A dv_ = b_ from dv_, whose residual is r_ (Eigen's
+  /// BiCGSTAB: same steps, restart when r drifts orthogonal to r0, stopping rule
+  /// |r|^2 <= 1e-24 |b|^2; and, as van der Vorst's, it stops halfway through an iteration
+  /// when the intermediate residual s already meets the rule). The vector updates are fused
+  /// into the products with A and three passes per iteration.
+  Solve bicgstab(double bb, Eigen::Index max_iterations) {
+    Solve out;
+    const Eigen::Index n = b_.size();
+    if (bb == 0.0) {
+      dv_.setZero();
+      out.converged = true;
+      return out;
+    }
+    jacobi();
+    double* x = dv_.data();
+    double* r = r_.data();
+    double* r0 = r0_.data();
+    double* p = p_.data();
+    double* v = v_.data();
+    double* y = y_.data();
+    double* z = z_.data();
+    double* sv = s_.data();
+    double* t = t_.data();
+    const double* d = inv_diag_.data();
+    const double tol2 = 1e-24 * bb;
+    const double eps2 =
+        std::numeric_limits<double>::epsilon() * std::numeric_limits<double>::epsilon();
+    double s2[2] = {0.0, 0.0};
+    for (Eigen::Index i = 0; i < n; ++i) {
+      r0[i] = r[i];
+      p[i] = v[i] = 0.0;
+      s2[i & 1] += r[i] * r[i];
+    }
+    double r2 = s2[0] + s2[1], r0_sqnorm = r2, rho_next = r2;
+    double rho = 1.0, alpha = 1.0, w = 1.0;
+    Eigen::Index it = 0;
+    while (r2 > tol2 && it < max_iterations) {
+      const double rho_old = rho;
+      rho = rho_next;
+      if (std::abs(rho) < eps2 * r0_sqnorm) {  // r nearly orthogonal to r0: restart
+        r2 = residual_of(dv_, r_);
+        for (Eigen::Index i = 0; i < n; ++i) r0[i] = r[i];
+        rho = r0_sqnorm = r2;
+      }
+      const double beta = (rho / rho_old) * (alpha / w);
+      for (Eigen::Index i = 0; i < n; ++i) {
+        p[i] = r[i] + beta * (p[i] - w * v[i]);
+        y[i] = d[i] * p[i];
+      }
+      double r0v[2] = {0.0, 0.0};
+      A_.multiply(y, [&](int64_t i, double y0, double y1) {
+        v[2 * i] = y0;
+        v[2 * i + 1] = y1;
+        r0v[0] += r0[2 * i] * y0;
+        r0v[1] += r0[2 * i + 1] * y1;
+      });
+      alpha = rho / (r0v[0] + r0v[1]);
+      s2[0] = s2[1] = 0.0;
+      for (Eigen::Index i = 0; i < n; ++i) {
+        sv[i] = r[i] - alpha * v[i];
+        z[i] = d[i] * sv[i];
+        s2[i & 1] += sv[i] * sv[i];
+      }
+      ++it;
+      if (s2[0] + s2[1] <= tol2) {  // converged halfway: x + alpha y
+        for (Eigen::Index i = 0; i < n; ++i) {
+          x[i] += alpha * y[i];
+          r[i] = sv[i];
+        }
+        r2 = s2[0] + s2[1];
+        break;
+      }
+      double tt[2] = {0.0, 0.0}, ts[2] = {0.0, 0.0};
+      A_.multiply(z, [&](int64_t i, double y0, double y1) {
+        t[2 * i] = y0;
+        t[2 * i + 1] = y1;
+        tt[0] += y0 * y0;
+        tt[1] += y1 * y1;
+        ts[0] += y0 * sv[2 * i];
+        ts[1] += y1 * sv[2 * i + 1];
+      });
+      const double t2 = tt[0] + tt[1];
+      w = t2 > 0.0 ? (ts[0] + ts[1]) / t2 : 0.0;
+      double rn[2] = {0.0, 0.0}, rh[2] = {0.0, 0.0};
+      for (Eigen::Index i = 0; i < n; ++i) {
+        x[i] += alpha * y[i] + w * z[i];
+        r[i] = sv[i] - w * t[i];
+        rn[i & 1] += r[i] * r[i];
+        rh[i & 1] += r0[i] * r[i];
+      }
+      r2 = rn[0] + rn[1];
+      rho_next = rh[0] + rh[1];
+    }
+    out.iterations = it;
+    out.residual = std::sqrt(r2 / bb);
+    out.converged = out.residual <= 1e-12;
+    return out;
+  }
+
   /// A = M - h D - h^2 K with the pinned rows and columns replaced by the identity, in the
-  /// fixed sparsity pattern of A_: each entry the forces emit adds into its slot of A_'s
+  /// fixed block pattern of A_: A_ starts as M (the identity for pinned particles) and each
+  /// entry the forces emit adds, times -h^2 (df/dx) or -h (df/dv), into its place in A_'s
   /// values (found once, by pattern()), so a step sorts and allocates nothing. Also
   /// kv_ = K v0. The forces hand their entries (16 per spring, as 4 2x2 blocks) straight to
   /// a Scatter, which checks each one's position against the pattern's and adds it into its
-  /// slot (and into K v0), in the order the forces emit them, each block's as its four
+  /// place (and into K v0), in the order the forces emit them, each block's as its four
   /// entries row by row: the sums are the same bits as if every entry had come alone. Only
   /// if the positions or the pinned dofs differ from the pattern's (the first step, a force
   /// whose entries change) are the Jacobians asked for again, kept (JacobianEntries), and
   /// the pattern rebuilt from them.
   void assemble(Simulation& sim, const State& s, Eigen::Index n, double h,
                 const Eigen::Map<const Eigen::VectorXd>& v0) {
-    auto zero = [&] {
-      ksum_.setZero();
-      dsum_.setZero();
+    auto start = [&] {
+      std::fill(A_.value.begin(), A_.value.end(), 0.0);
+      for (int64_t i = 0; i < A_.rows(); ++i) {
+        double* d = A_.value.data() + 4 * diag_block_[static_cast<std::size_t>(i)];
+        d[0] = m_[2 * i] > 0.0 ? m_[2 * i] : 1.0;
+        d[3] = m_[2 * i + 1] > 0.0 ? m_[2 * i + 1] : 1.0;
+      }
       kv_.setZero();
     };
     bool done = false;
     if (same_size_and_pins(n)) {
-      zero();
-      Scatter x{&px_, ksum_.data(), kv_.data(), v0.data(), n};
-      Scatter v{&pv_, dsum_.data(), nullptr, nullptr, n};
+      start();
+      Scatter x{&px_, A_.value.data(), -h * h, kv_.data(), v0.data(), n};
+      Scatter v{&pv_, A_.value.data(), -h, nullptr, nullptr, n};
       sim.jacobians(s, x.sink(), v.sink());
       done = x.complete() && v.complete();
     }
     if (!done) {
       sim.jacobian_entries(s, ex_, ev_);
       pattern(n);
-      zero();
-      Scatter x{&px_, ksum_.data(), kv_.data(), v0.data(), n};
-      Scatter v{&pv_, dsum_.data(), nullptr, nullptr, n};
+      start();
+      Scatter x{&px_, A_.value.data(), -h * h, kv_.data(), v0.data(), n};
+      Scatter v{&pv_, A_.value.data(), -h, nullptr, nullptr, n};
       x.feed(ex_);
       v.feed(ev_);
       ex_ = JacobianEntries();  // only the pattern's build needs them: free their memory
       ev_ = JacobianEntries();
     }
-    double* a = A_.valuePtr();
-    for (Eigen::Index j = 0; j < A_.nonZeros(); ++j) a[j] = (-h * dsum_[j]) - (h * h) * ksum_[j];
-    for (Eigen::Index i = 0; i < n; ++i) a[diag_slot_[i]] += m_[i] > 0.0 ? m_[i] : 1.0;
   }
 
-  /// Where one Jacobian's entries go in A_: per single entry its slot (-1: a pinned row or
-  /// column) and position row * n + col; per 2x2 block (i, j) the slots of its two columns'
-  /// first entries (rows 2i and 2i + 1 are adjacent slots of a column; -1: pinned) and its
-  /// particles (uint64 i << 32 | j), as pattern() found them, in the order they came.
+  /// Where one Jacobian's entries go in A_'s values: per single entry its value's index
+  /// (-1: a pinned row or column) and position row * n + col; per 2x2 block its block's
+  /// index in A_ (-1: pinned) and its particles (uint64 i << 32 | j), as pattern() found
+  /// them, in the order they came.
   struct Slots {
     std::vector<int64_t> single, key, block;
     std::vector<uint64_t> block_key;
   };
 
-  /// A sink that adds each entry into `sum` by its slot in `p` (and K v0 into kv if kv),
-  /// checking its position; after the first entry that differs from the pattern's it adds
-  /// nothing more and complete() is false.
+  /// A sink that adds each entry times `scale` into `a` by its place in `p` (and K v0 into
+  /// kv if kv), checking its position; after the first entry that differs from the pattern's
+  /// it adds nothing more and complete() is false.
   struct Scatter {
     const Slots* p;
-    double* sum;
+    double* a;
+    double scale;
     double* kv;
     const double* v0;
     Eigen::Index n;
@@ -211,21 +402,22 @@ class ImplicitEuler : public Integrator {
         ok = false;
         return;
       }
-      if (p->single[k] >= 0) sum[p->single[k]] += value;
+      if (p->single[k] >= 0) a[p->single[k]] += scale * value;
       if (kv) kv[row] += value * v0[col];
       ++k;
     }
-    void add_block(uint64_t key, const double* v) {  // v column-major
+    void add_block(uint64_t key, const double* v) {  // v column-major, A_'s blocks row-major
       if (!ok || b >= p->block_key.size() || p->block_key[b] != key) {
         ok = false;
         return;
       }
-      const int64_t s0 = p->block[2 * b], s1 = p->block[2 * b + 1];
-      if (s0 >= 0) {
-        sum[s0] += v[0];
-        sum[s0 + 1] += v[1];
-        sum[s1] += v[2];
-        sum[s1 + 1] += v[3];
+      const int64_t s = p->block[b];
+      if (s >= 0) {
+        double* q = a + 4 * s;
+        q[0] += scale * v[0];
+        q[1] += scale * v[2];
+        q[2] += scale * v[1];
+        q[3] += scale * v[3];
       }
       if (kv) {
         const std::size_t r = 2 * (key >> 32), c = 2 * (key & 0xffffffffu);
@@ -265,31 +457,47 @@ class ImplicitEuler : public Integrator {
     }
   };
 
-  /// Whether A_ is symmetric up to rounding: |a_ij - a_ji| <= 1e-13 (a_ii a_jj)^1/2 for
-  /// every off-diagonal slot, compared with the slot of its transpose entry (tslot_, found by
-  /// pattern(); -1 if the pattern lacks it: then the bound applies to a_ij alone). The
-  /// entries of a symmetric Jacobian are sums whose order and rounding can differ between
-  /// (i, j) and (j, i) by a few ulps of the diagonal; CG's product with A^T instead of A then
-  /// errs by under 1e-13 of the Jacobi-scaled A per entry, the order of its own 1e-12
-  /// tolerance. A real asymmetry (a turning damped spring) is far above that. A NaN fails.
-  bool is_symmetric() const {
-    const double* a = A_.valuePtr();
-    const Eigen::Index n = A_.cols();
-    for (Eigen::Index c = 0; c < n; ++c) {
-      const double dc = std::abs(a[diag_slot_[static_cast<std::size_t>(c)]]);
-      for (Eigen::Index j = A_.outerIndexPtr()[c]; j < A_.outerIndexPtr()[c + 1]; ++j) {
-        const int64_t t = tslot_[static_cast<std::size_t>(j)];
-        if (t >= 0 && t <= j) continue;  // the diagonal, or a pair seen from the other side
-        const double dr = std::abs(a[diag_slot_[static_cast<std::size_t>(A_.innerIndexPtr()[j])]]);
-        const double diff = t < 0 ? a[j] : a[j] - a[t];
-        if (!(std::abs(diff) <= 1e-13 * std::sqrt(dr * dc))) return false;
+  /// Whether A_ is symmetric up to rounding: |a_ij - a_ji| <= 1e-13 |a_ii|^1/2 |a_jj|^1/2
+  /// for every off-diagonal entry, compared with its transpose entry (in the block tblock_
+  /// found by pattern(); if the pattern lacks that block the bound applies to a_ij alone).
+  /// The entries of a symmetric Jacobian are sums whose order and rounding can differ
+  /// between (i, j) and (j, i) by a few ulps of the diagonal; CG's use of A for A^T then errs
+  /// by under 1e-13 of the Jacobi-scaled A per entry, the order of its own 1e-12 tolerance.
+  /// A real asymmetry (a turning damped spring) is far above that. A NaN fails.
+  bool is_symmetric() {
+    const int64_t np = A_.rows();
+    if (root_diag_.size() != static_cast<std::size_t>(2 * np))
+      root_diag_.resize(static_cast<std::size_t>(2 * np));
+    double* sd = root_diag_.data();
+    const double* a = A_.value.data();
+    for (int64_t i = 0; i < np; ++i) {
+      const double* d = a + 4 * diag_block_[static_cast<std::size_t>(i)];
+      sd[2 * i] = std::sqrt(std::abs(d[0]));
+      sd[2 * i + 1] = std::sqrt(std::abs(d[3]));
+    }
+    for (int64_t i = 0; i < np; ++i) {
+      for (int64_t k = A_.first[static_cast<std::size_t>(i)];
+           k < A_.first[static_cast<std::size_t>(i) + 1]; ++k) {
+        const int64_t j = A_.col[static_cast<std::size_t>(k)];
+        const int64_t t = tblock_[static_cast<std::size_t>(k)];
+        const double* q = a + 4 * k;
+        if (j == i) {
+          if (!(std::abs(q[1] - q[2]) <= 1e-13 * (sd[2 * i] * sd[2 * i + 1]))) return false;
+          continue;
+        }
+        if (t >= 0 && j < i) continue;  // the pair, seen from the other side
+        for (int r = 0; r < 2; ++r)
+          for (int c = 0; c < 2; ++c) {
+            const double diff = t < 0 ? q[2 * r + c] : q[2 * r + c] - a[4 * t + 2 * c + r];
+            if (!(std::abs(diff) <= 1e-13 * (sd[2 * i + r] * sd[2 * j + c]))) return false;
+          }
       }
     }
     return true;
   }
 
   bool same_size_and_pins(Eigen::Index n) const {
-    if (A_.rows() != n) return false;
+    if (2 * A_.rows() != n) return false;
     for (Eigen::Index i = 0; i < n; ++i)
       if ((m_[i] > 0.0) != free_[static_cast<std::size_t>(i)]) return false;
     return true;
@@ -298,87 +506,88 @@ class ImplicitEuler : public Integrator {
   void pattern(Eigen::Index n) {
     free_.assign(static_cast<std::size_t>(n), false);
     for (Eigen::Index i = 0; i < n; ++i) free_[static_cast<std::size_t>(i)] = m_[i] > 0.0;
-    std::vector<Eigen::Triplet<double>> pat;
-    pat.reserve(ex_.entries() + ev_.entries() + static_cast<std::size_t>(n));
     auto kept = [&](Eigen::Index r, Eigen::Index c) { return m_[r] > 0.0 && m_[c] > 0.0; };
-    auto block_at = [](uint64_t key) {
-      return std::pair<Eigen::Index, Eigen::Index>(
-          static_cast<Eigen::Index>(2 * (key >> 32)),
-          static_cast<Eigen::Index>(2 * (key & 0xffffffffu)));
-    };
+    const int64_t np = n / 2;
+    std::vector<uint64_t> keys;  // blocks (i << 32 | j)
+    keys.reserve(ex_.blocks.size() + ev_.blocks.size() + ex_.single.size() + ev_.single.size() +
+                 static_cast<std::size_t>(np));
     for (const JacobianEntries* t : {&ex_, &ev_}) {
       for (const auto& e : t->single)
-        if (kept(e.row(), e.col())) pat.emplace_back(e.row(), e.col(), 0.0);
-      for (const uint64_t key : t->blocks) {
-        const auto [r, c] = block_at(key);
-        if (!kept(r, c)) continue;
-        for (int i = 0; i < 2; ++i)
-          for (int j = 0; j < 2; ++j) pat.emplace_back(r + i, c + j, 0.0);
-      }
+        if (kept(e.row(), e.col()))
+          keys.push_back(static_cast<uint64_t>(e.row() / 2) << 32 |
+                         static_cast<uint64_t>(e.col() / 2));
+      for (const uint64_t key : t->blocks)
+        if (kept(static_cast<Eigen::Index>(2 * (key >> 32)),
+                 static_cast<Eigen::Index>(2 * (key & 0xffffffffu))))
+          keys.push_back(key);
     }
-    for (Eigen::Index i = 0; i < n; ++i) pat.emplace_back(i, i, 0.0);
-    A_.resize(n, n);
-    A_.setFromTriplets(pat.begin(), pat.end());
-    A_.makeCompressed();
-    auto slot = [&](Eigen::Index r, Eigen::Index c) -> int64_t {
-      const int* first = A_.innerIndexPtr() + A_.outerIndexPtr()[c];
-      const int* last = A_.innerIndexPtr() + A_.outerIndexPtr()[c + 1];
-      return std::lower_bound(first, last, static_cast<int>(r)) - A_.innerIndexPtr();
-    };
+    for (int64_t i = 0; i < np; ++i)
+      keys.push_back(static_cast<uint64_t>(i) << 32 | static_cast<uint64_t>(i));
+    std::sort(keys.begin(), keys.end());
+    keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
+    A_.first.assign(static_cast<std::size_t>(np) + 1, 0);
+    A_.col.resize(keys.size());
+    for (std::size_t k = 0; k < keys.size(); ++k) {
+      ++A_.first[(keys[k] >> 32) + 1];
+      A_.col[k] = static_cast<int32_t>(keys[k] & 0xffffffffu);
+    }
+    for (int64_t i = 0; i < np; ++i)
+      A_.first[static_cast<std::size_t>(i) + 1] += A_.first[static_cast<std::size_t>(i)];
+    A_.value.assign(4 * keys.size(), 0.0);
     auto slots = [&](const JacobianEntries& t, Slots& out) {
       out.single.resize(t.single.size());
       out.key.resize(t.single.size());
       for (std::size_t k = 0; k < t.single.size(); ++k) {
         const auto& e = t.single[k];
-        out.single[k] = kept(e.row(), e.col()) ? slot(e.row(), e.col()) : -1;
+        out.single[k] = kept(e.row(), e.col()) ? 4 * A_.find(e.row() / 2, e.col() / 2) +
+                                                     2 * (e.row() % 2) + (e.col() % 2)
+                                               : -1;
         out.key[k] = e.row() * n + e.col();
       }
       out.block_key = t.blocks;
-      out.block.resize(2 * t.blocks.size());
+      out.block.resize(t.blocks.size());
       for (std::size_t b = 0; b < t.blocks.size(); ++b) {
-        const auto [r, c] = block_at(t.blocks[b]);
-        const bool in = kept(r, c);
-        out.block[2 * b] = in ? slot(r, c) : -1;  // (r + 1, c) is the next slot
-        out.block[2 * b + 1] = in ? slot(r, c + 1) : -1;
+        const int64_t i = static_cast<int64_t>(t.blocks[b] >> 32),
+                      j = static_cast<int64_t>(t.blocks[b] & 0xffffffffu);
+        out.block[b] = kept(2 * i, 2 * j) ? A_.find(i, j) : -1;
       }
     };
     slots(ex_, px_);
     slots(ev_, pv_);
-    diag_slot_.resize(static_cast<std::size_t>(n));
-    for (Eigen::Index i = 0; i < n; ++i) diag_slot_[static_cast<std::size_t>(i)] = slot(i, i);
-    // The slot of each slot's transpose entry (the pattern need not be symmetric).
-    tslot_.resize(static_cast<std::size_t>(A_.nonZeros()));
-    for (Eigen::Index c = 0; c < n; ++c)
-      for (Eigen::Index j = A_.outerIndexPtr()[c]; j < A_.outerIndexPtr()[c + 1]; ++j) {
-        const Eigen::Index r = A_.innerIndexPtr()[j];
-        const int* first = A_.innerIndexPtr() + A_.outerIndexPtr()[r];
-        const int* last = A_.innerIndexPtr() + A_.outerIndexPtr()[r + 1];
-        const int* at = std::lower_bound(first, last, static_cast<int>(c));
-        tslot_[static_cast<std::size_t>(j)] =
-            at != last && *at == static_cast<int>(c) ? at - A_.innerIndexPtr() : -1;
-      }
-    ksum_.resize(A_.nonZeros());
-    dsum_.resize(A_.nonZeros());
+    diag_block_.resize(static_cast<std::size_t>(np));
+    for (int64_t i = 0; i < np; ++i) diag_block_[static_cast<std::size_t>(i)] = A_.find(i, i);
+    // The block of each block's transpose (the pattern need not be symmetric).
+    tblock_.resize(static_cast<std::size_t>(A_.blocks()));
+    for (int64_t i = 0; i < np; ++i)
+      for (int64_t k = A_.first[static_cast<std::size_t>(i)];
+           k < A_.first[static_cast<std::size_t>(i) + 1]; ++k)
+        tblock_[static_cast<std::size_t>(k)] = A_.find(A_.col[static_cast<std::size_t>(k)], i);
   }
 
   /// Refuses a solve whose velocity error bound (sum r_i^2 / m_i)^1/2 exceeds
-  /// 1e-3 (|v_n|_M^2 + |dv|_M^2)^1/2 (see above).
+  /// 1e-3 (|v_n|_M^2 + |dv|_M^2)^1/2 (see above), with r = A dv - b computed afresh (not the
+  /// Krylov iteration's own residual, which rounding can make drift from it).
   void check_accuracy(Simulation& sim, const State& s, const Eigen::VectorXd& b,
                       const Eigen::VectorXd& dv, const Eigen::VectorXd& m, double h) {
-    const Eigen::VectorXd r = A_ * dv - b;
     double r2 = 0.0, v2 = 0.0, worst = 0.0;
     Eigen::Index at = -1;
-    for (Eigen::Index i = 0; i < r.size(); ++i) {
-      if (!(m[i] > 0.0)) continue;  // pinned: r_i = 0
-      const double vi = s.v.data()[i];
+    const double* vel = s.v.data();
+    auto dof = [&](Eigen::Index i, double y) {
+      if (!(m[i] > 0.0)) return;  // pinned: r_i = 0
+      const double ri = y - b[i];
+      const double vi = vel[i];
       v2 += m[i] * (vi * vi + dv[i] * dv[i]);
-      const double e = r[i] * r[i] / m[i];
+      const double e = ri * ri / m[i];
       r2 += e;
       if (at < 0 || !(e <= worst)) {  // a NaN is the worst
         worst = e;
         at = i;
       }
-    }
+    };
+    A_.multiply(dv.data(), [&](int64_t i, double y0, double y1) {
+      dof(2 * i, y0);
+      dof(2 * i + 1, y1);
+    });
     if (r2 <= 1e-6 * v2) return;
     throw NumericError(
         NumericError::Kind::SolverFailure,
@@ -443,18 +652,16 @@ class ImplicitEuler : public Integrator {
   double worst_residual_ = 0.0;
   Eigen::Matrix2Xd f_;
   JacobianEntries ex_, ev_;         ///< df/dx, df/dv entries (kept capacity)
-  Eigen::VectorXd m_, kv_, b_, r_;  ///< masses (0: pinned), K v_n, right side
+  Eigen::VectorXd m_, kv_, b_, r_;  ///< masses (0: pinned), K v_n, right side, residual
+  Eigen::VectorXd r0_, p_, v_, y_, z_, s_, t_, inv_diag_;  ///< the Krylov solves' vectors
   // The pattern of A_: where each entry goes in A_'s values and the entries' positions it
-  // was built for (Slots), the free dofs it was built for, each diagonal's slot.
-  // tslot_: per slot of A_, the slot of its transpose entry (-1: not in the pattern).
+  // was built for (Slots), the free dofs it was built for, each diagonal block's index.
+  // tblock_: per block of A_, the block of its transpose (-1: not in the pattern).
   Slots px_, pv_;
-  std::vector<int64_t> diag_slot_, tslot_;
+  std::vector<int64_t> diag_block_, tblock_;
+  std::vector<double> root_diag_;  ///< |a_ii|^1/2 (is_symmetric)
   std::vector<bool> free_;
-  Eigen::VectorXd ksum_, dsum_;  ///< per slot: sum of df/dx, of df/dv
-  Eigen::SparseMatrix<double> A_;
-  // CG for a symmetric A (it multiplies by A^T); BiCGSTAB for a nonsymmetric one.
-  Eigen::ConjugateGradient<Eigen::SparseMatrix<double>, Eigen::Lower | Eigen::Upper> cg_;
-  Eigen::BiCGSTAB<Eigen::SparseMatrix<double>, Eigen::DiagonalPreconditioner<double>> bicgstab_;
+  BlockSparseMatrix2 A_;
 };
 
 }  // namespace
