@@ -71,14 +71,24 @@ int main(int argc, char** argv) {
   pinsim::PluginLoader loader(pinsim::plugin_search_dirs());
   std::printf("figure,value,unit\nparticles,%d,\n", n * n);
 
-  auto step_ms = [&](const char* integrator, int repeats) {
+  auto step_ms = [&](const char* integrator, int repeats, unsigned threads) {
     const pinsim::Scene scene =
         pinsim::parse_scene(cloth_scene(n, integrator, "csv").dump(), "cloth.json", ".");
-    pinsim::Simulation sim(scene, loader);
+    pinsim::RunOptions options;
+    options.threads = threads;
+    pinsim::Simulation sim(scene, loader, options);
     return median_ms([&] { sim.step(); }, repeats, 5);
   };
-  const double symplectic = step_ms("symplectic_euler", 101);
-  const double implicit = step_ms("implicit_euler", 31);
+  // One thread: this thread's CPU time is all of the step's work.
+  const double symplectic1 = step_ms("symplectic_euler", 101, 1);
+  const double implicit1 = step_ms("implicit_euler", 31, 1);
+  std::printf("symplectic_euler_step_1_thread,%.4f,ms\n", symplectic1);
+  std::printf("implicit_euler_step_1_thread,%.4f,ms\n", implicit1);
+  std::printf("implicit_over_symplectic_1_thread,%.2f,\n", implicit1 / symplectic1);
+  // The default thread count (the machine's cores): the springs' forces run in chunks on
+  // the workers too, whose CPU time this thread's clock does not see.
+  const double symplectic = step_ms("symplectic_euler", 101, 0);
+  const double implicit = step_ms("implicit_euler", 31, 0);
   std::printf("symplectic_euler_step,%.4f,ms\n", symplectic);
   std::printf("implicit_euler_step,%.4f,ms\n", implicit);
   std::printf("implicit_over_symplectic,%.2f,\n", implicit / symplectic);
