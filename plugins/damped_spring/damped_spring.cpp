@@ -40,8 +40,9 @@ void DampedSpring::constraint_hessian(std::size_t, const Stencil& p, Hessian& h)
     h.setZero();
     return;
   }
-  const Vec2 n = d / r;
-  const Mat2 b = (Mat2::Identity() - n * n.transpose()) / r;
+  const double inv = 1.0 / r;
+  const Vec2 n = d * inv;
+  const Mat2 b = (Mat2::Identity() - n * n.transpose()) * inv;
   h.block<2, 2>(0, 0) = b;
   h.block<2, 2>(2, 2) = b;
   h.block<2, 2>(0, 2) = -b;

@@ -158,10 +158,7 @@ class ConstraintSpring {
       Stencil dC;
       const double c = self().constraint(e, p, dC);
       const Eigen::Map<const Eigen::Matrix<double, kDofs, 1>> g(dC.data()), vv(vel.data());
-      const Hessian h = hessian(e, p);
-      const double sc = ks_ * c + kd_ * g.dot(vv);
-      const Hessian k = -ks_ * g * g.transpose() - sc * h - kd_ * g * (h * vv).transpose();
-      scatter(e, k, out);
+      scatter(e, dfdx(e, p, c, g, vv), out);
     }
   }
 
@@ -176,15 +173,31 @@ class ConstraintSpring {
       Stencil dC;
       const double c = self().constraint(e, p, dC);
       const Eigen::Map<const Eigen::Matrix<double, kDofs, 1>> g(dC.data());
+      // Block by block, each entry as dfdx() and add_dfdv() compute it (no 2k x 2k
+      // matrices formed and copied).
       if (dx != nullptr) {
         const Stencil vel = gather(s.v, e);
         const Eigen::Map<const Eigen::Matrix<double, kDofs, 1>> vv(vel.data());
         const Hessian h = hessian(e, p);
         const double sc = ks_ * c + kd_ * g.dot(vv);
-        const Hessian k = -ks_ * g * g.transpose() - sc * h - kd_ * g * (h * vv).transpose();
-        scatter(e, k, *dx);
+        const Eigen::Matrix<double, kDofs, 1> u = ks_ * g + kd_ * (h * vv);
+        for (uint32_t a = 0; a < Arity; ++a)
+          for (uint32_t b = 0; b < Arity; ++b) {
+            const int ra = 2 * static_cast<int>(a), cb = 2 * static_cast<int>(b);
+            const Mat2 k = -(g.template segment<2>(ra) * u.template segment<2>(cb).transpose()) -
+                           sc * h.template block<2, 2>(ra, cb);
+            dx->add_block(particle(e, a), particle(e, b), k);
+          }
       }
-      if (dv != nullptr) scatter(e, -kd_ * g * g.transpose(), *dv);
+      if (dv != nullptr) {
+        const Eigen::Matrix<double, kDofs, 1> kg = -kd_ * g;
+        for (uint32_t a = 0; a < Arity; ++a)
+          for (uint32_t b = 0; b < Arity; ++b) {
+            const Mat2 d = kg.template segment<2>(2 * static_cast<int>(a)) *
+                           g.template segment<2>(2 * static_cast<int>(b)).transpose();
+            dv->add_block(particle(e, a), particle(e, b), d);
+          }
+      }
     }
   }
 
@@ -216,6 +229,16 @@ class ConstraintSpring {
 
  private:
   const Derived& self() const { return static_cast<const Derived&>(*this); }
+
+  /// Element e's df/dx = -ks g g^T - (ks C + kd g.v) H - kd g (H v)^T (g = J^T = dC/dp),
+  /// computed as -g (ks g + kd H v)^T - (ks C + kd g.v) H: one outer product.
+  template <class G>
+  Hessian dfdx(std::size_t e, const Stencil& p, double c, const G& g, const G& vv) const {
+    const Hessian h = hessian(e, p);
+    const double sc = ks_ * c + kd_ * g.dot(vv);
+    const Eigen::Matrix<double, kDofs, 1> u = ks_ * g + kd_ * (h * vv);
+    return -(g * u.transpose()) - sc * h;
+  }
 
   /// The author's exact Hessian if there is one, else central differences of dC/dp with a
   /// step relative to the stencil's size (error ~1e-10 relative for smooth C).

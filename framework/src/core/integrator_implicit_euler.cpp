@@ -24,20 +24,23 @@ namespace {
 /// harmonic oscillator the energy shrinks by exactly 1/(1 + (h w)^2) per step, for any h.
 /// Pinned dofs (inv_mass 0) keep dv = 0: their rows and columns become the identity.
 /// A is symmetric for conservative forces, but not always: a damped spring's df/dx has the
-/// nonsymmetric term -kd J^T (H v)^T when the spring turns. Eigen's ConjugateGradient with
-/// Lower|Upper on a column-major matrix multiplies by A^T (it assumes symmetry), so on such a
-/// system it would solve A^T dv = b. Each step therefore checks A's symmetry up to rounding
-/// (every slot against the slot of its transpose entry, found once with the pattern; see
-/// is_symmetric()) and solves a symmetric A by conjugate gradients, a nonsymmetric
-/// one by BiCGSTAB (which multiplies by A itself), both with a Jacobi (diagonal)
-/// preconditioner to a relative residual of 1e-12, started from the last step's dv (warm
-/// start: a smooth motion changes dv little from step to step) when that guess's residual is
-/// below |b|, else from 0. A is assembled in a sparsity pattern built once (rebuilt only if
-/// the forces' entries move): no sorting or allocation per step; if the iterative solve fails
-/// (an indefinite K from compressed springs can make CG fail) a sparse LU solves it instead. If
-/// that fails too (a singular system, or a residual above 1e-8 of |b|), the step throws
-/// NumericError (solver_failure) rather than use an unconverged velocity. stats() reports the
-/// solves for summary.json.
+/// nonsymmetric term -kd J^T (H v)^T when the spring turns; conjugate gradients on such a
+/// system would converge to something else than A^-1 b (Eigen's ConjugateGradient with
+/// Lower|Upper, used before, multiplied by A^T). Each step therefore checks A's symmetry up
+/// to rounding (every entry against its transpose entry, whose block is found once with the
+/// pattern; see is_symmetric()) and solves a symmetric A by conjugate gradients, a
+/// nonsymmetric one by BiCGSTAB, both with a Jacobi (diagonal) preconditioner to a relative
+/// residual of 1e-12, started from the last step's dv (warm start: a smooth motion changes
+/// dv little from step to step) when that guess's residual is below |b|, else from 0. Both
+/// are written here (cg(), bicgstab(): Eigen's steps and stopping rules) over A stored as
+/// 2x2 blocks by rows (BlockSparseMatrix2: products gather, no scattered writes), with the
+/// vector updates fused into the products and a few passes per iteration, and the warm
+/// start's residual as their first. A is assembled in a block pattern built once (rebuilt
+/// only if the forces' entries move): no sorting or allocation per step; if the iterative
+/// solve fails (an indefinite K from compressed springs can make CG fail) a sparse LU
+/// solves it instead. If that fails too (a singular system, or a residual above 1e-8 of |b|), the
+/// step throws NumericError (solver_failure) rather than use an unconverged velocity. stats()
+/// reports the solves for summary.json.
 ///
 /// A converged solve can still be meaningless. CG stops at |A dv - b| <= 1e-12 |b|, and a
 /// very stiff force makes |b| huge (h^2 K v) while the soft directions of A keep eigenvalues
@@ -336,8 +339,9 @@ class ImplicitEuler : public Integrator {
   /// values (found once, by pattern()), so a step sorts and allocates nothing. Also
   /// kv_ = K v0. The forces hand their entries (16 per spring, as 4 2x2 blocks) straight to
   /// a Scatter, which checks each one's position against the pattern's and adds it into its
-  /// place (and into K v0), in the order the forces emit them, each block's as its four
-  /// entries row by row: the sums are the same bits as if every entry had come alone. Only
+  /// place (and into K v0, a block's row times v0 at a time), in the order the forces emit
+  /// them: the same sums in the same order every step, whether the entries come streamed
+  /// or kept (JacobianEntries, the pattern's first step). Only
   /// if the positions or the pinned dofs differ from the pattern's (the first step, a force
   /// whose entries change) are the Jacobians asked for again, kept (JacobianEntries), and
   /// the pattern rebuilt from them.
@@ -394,6 +398,7 @@ class ImplicitEuler : public Integrator {
     Eigen::Index n;
     std::size_t k = 0, b = 0;  ///< single entries, blocks so far
     bool ok = true;
+    static constexpr std::size_t kAhead = 24;
 
     bool complete() const { return ok && k == p->single.size() && b == p->block_key.size(); }
     void add(uint32_t row, uint32_t col, double value) {
@@ -412,6 +417,7 @@ class ImplicitEuler : public Integrator {
         return;
       }
       const int64_t s = p->block[b];
+      if (b + kAhead < p->block.size()) __builtin_prefetch(a + 4 * p->block[b + kAhead], 1);
       if (s >= 0) {
         double* q = a + 4 * s;
         q[0] += scale * v[0];
@@ -421,10 +427,8 @@ class ImplicitEuler : public Integrator {
       }
       if (kv) {
         const std::size_t r = 2 * (key >> 32), c = 2 * (key & 0xffffffffu);
-        kv[r] += v[0] * v0[c];  // row by row, as four single entries would
-        kv[r] += v[2] * v0[c + 1];
-        kv[r + 1] += v[1] * v0[c];
-        kv[r + 1] += v[3] * v0[c + 1];
+        kv[r] += v[0] * v0[c] + v[2] * v0[c + 1];  // the block's row times v0, then added
+        kv[r + 1] += v[1] * v0[c] + v[3] * v0[c + 1];
       }
       ++b;
     }
@@ -448,11 +452,12 @@ class ImplicitEuler : public Integrator {
                 static_cast<Scatter*>(c)->add(row, col, value);
               },
               [](void* c, const uint32_t* particles, const double* v, uint64_t count) {
-                auto* self = static_cast<Scatter*>(c);
+                Scatter self = *static_cast<Scatter*>(c);  // in registers, not through c
                 for (uint64_t q = 0; q < count; ++q)
-                  self->add_block(
+                  self.add_block(
                       static_cast<uint64_t>(particles[2 * q]) << 32 | particles[2 * q + 1],
                       v + 4 * q);
+                *static_cast<Scatter*>(c) = self;
               }};
     }
   };
