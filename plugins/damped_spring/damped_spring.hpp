@@ -27,6 +27,15 @@ class DampedSpring : public ConstraintSpring<DampedSpring, 2> {
   /// are its negative. Zero when the spring has no length.
   void constraint_hessian(std::size_t e, const Stencil& p, Hessian& h) const;
 
+  /// Both Jacobians in one pass (replaces the SDK's generic ConstraintSpring::add_jacobians,
+  /// which forms the 4x4 Hessian and its products per spring). With n = R̂, B = (I - n nᵀ)/R,
+  /// w = ks n + kd B (v_k - v_l) and s = ks (R - L) + kd Ṙ, the generic formula's blocks are
+  ///   ∂f/∂x: (k,k) = (l,l) = -n wᵀ - s B,  (k,l) = (l,k) = their negative;
+  ///   ∂f/∂v: (k,k) = (l,l) = -kd n nᵀ,     (k,l) = (l,k) = their negative.
+  /// The same blocks, in the same order, as the generic pass (so the same pattern); values
+  /// equal to rounding (tests/plugins/damped_spring checks both against central differences).
+  void add_jacobians(const StateView& s, Triplets* dx, Triplets* dv) const;
+
   /// Rest length of element e, scene units.
   double rest_length(std::size_t e) const { return rest_[e]; }
 

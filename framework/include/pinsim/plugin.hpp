@@ -109,14 +109,26 @@ class Triplets {
   }
   /// Adds the 2x2 block d f_i / d x_j.
   void add_block(uint32_t i, uint32_t j, const Mat2& b) {
+    add_block(i, j, b(0, 0), b(1, 0), b(0, 1), b(1, 1));
+  }
+  /// Adds the 2x2 block d f_i / d x_j given entry by entry, column by column (b_00, b_10,
+  /// b_01, b_11): for a hot loop, which then writes its values straight into the batch (no
+  /// Mat2 on the stack copied in).
+  void add_block(uint32_t i, uint32_t j, double b00, double b10, double b01, double b11) {
     if (sink_.add_blocks == nullptr) {
-      for (uint32_t r = 0; r < 2; ++r)
-        for (uint32_t c = 0; c < 2; ++c) sink_.add(sink_.context, 2 * i + r, 2 * j + c, b(r, c));
+      sink_.add(sink_.context, 2 * i, 2 * j, b00);
+      sink_.add(sink_.context, 2 * i, 2 * j + 1, b01);
+      sink_.add(sink_.context, 2 * i + 1, 2 * j, b10);
+      sink_.add(sink_.context, 2 * i + 1, 2 * j + 1, b11);
       return;
     }
     particles_[2 * count_] = i;
     particles_[2 * count_ + 1] = j;
-    std::memcpy(values_ + 4 * count_, b.data(), 4 * sizeof(double));  // column-major
+    double* v = values_ + 4 * count_;  // column-major
+    v[0] = b00;
+    v[1] = b10;
+    v[2] = b01;
+    v[3] = b11;
     if (++count_ == kBatch) flush();
   }
   /// Hands the collected blocks to the host (add() and the destructor do it too).
