@@ -38,11 +38,16 @@ struct BlockSparseMatrix2 {
   /// Calls row(i, y0, y1) with (A x)_{2i}, (A x)_{2i+1} for each block row i in order.
   template <class Row>
   void multiply(const double* x, Row&& row) const {
-    const int64_t n = rows();
+    multiply(x, 0, rows(), row);
+  }
+
+  /// The same for the block rows lo .. hi - 1 only.
+  template <class Row>
+  void multiply(const double* x, int64_t lo, int64_t hi, Row&& row) const {
     const int64_t* f = first.data();
     const int32_t* c = col.data();
     const double* a = value.data();
-    for (int64_t i = 0; i < n; ++i) {
+    for (int64_t i = lo; i < hi; ++i) {
       double y0 = 0.0, y1 = 0.0;
       for (int64_t k = f[i]; k < f[i + 1]; ++k) {
         const double* b = a + 4 * k;

@@ -4,6 +4,7 @@
 
 #include <Eigen/SparseLU>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -13,6 +14,7 @@
 #include "core/block_sparse_matrix.hpp"
 #include "core/integrators.hpp"
 #include "core/simulation.hpp"
+#include "pinsim/parallel.hpp"
 
 namespace pinsim {
 namespace {
@@ -67,10 +69,13 @@ class ImplicitEuler : public Integrator {
     const Eigen::Map<const Eigen::VectorXd> v0(s.v.data(), n);
 
     if (m_.size() != n) m_.resize(n);
-    for (Eigen::Index i = 0; i < n; ++i) {
-      const double w = s.inv_mass[i / 2];
-      m_[i] = w > 0.0 ? 1.0 / w : 0.0;
-    }
+    np_ = n / 2;
+    for_rows([&](int64_t lo, int64_t hi) {
+      for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
+        const double w = s.inv_mass[i / 2];
+        m_[i] = w > 0.0 ? 1.0 / w : 0.0;
+      }
+    });
     const Eigen::VectorXd& m = m_;
     // A, and K v_n straight from the entries; b = h (f_n + h K v_n), pinned rows zeroed.
     if (kv_.size() != n) kv_.resize(n);
@@ -78,11 +83,12 @@ class ImplicitEuler : public Integrator {
     for (Eigen::VectorXd* x : {&b_, &r_, &r0_, &p_, &v_, &y_, &z_, &s_, &t_, &inv_diag_})
       if (x->size() != n) x->resize(n);
     const double* f = f_.data();
-    double bb = 0.0;
-    for (Eigen::Index i = 0; i < n; ++i) {
-      b_[i] = m[i] > 0.0 ? h * (f[i] + h * kv_[i]) : 0.0;
-      bb += b_[i] * b_[i];
-    }
+    const double bb = sum_rows<1>([&](int64_t lo, int64_t hi, double* sum) {
+      for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
+        b_[i] = m[i] > 0.0 ? h * (f[i] + h * kv_[i]) : 0.0;
+        sum[0] += b_[i] * b_[i];
+      }
+    })[0];
     const Eigen::VectorXd& b = b_;
     const bool symmetric = is_symmetric();
     const Eigen::Index max_iterations = options_.cg_max_iterations > 0
@@ -146,17 +152,70 @@ class ImplicitEuler : public Integrator {
   }
 
   /// r = b_ - A x; returns |r|^2.
-  double residual_of(const Eigen::VectorXd& x, Eigen::VectorXd& r) const {
+  double residual_of(const Eigen::VectorXd& x, Eigen::VectorXd& r) {
     const double* b = b_.data();
     double* out = r.data();
-    double sum[2] = {0.0, 0.0};
-    A_.multiply(x.data(), [&](int64_t i, double y0, double y1) {
-      out[2 * i] = b[2 * i] - y0;
-      out[2 * i + 1] = b[2 * i + 1] - y1;
-      sum[0] += out[2 * i] * out[2 * i];
-      sum[1] += out[2 * i + 1] * out[2 * i + 1];
-    });
-    return sum[0] + sum[1];
+    return sum_rows<1>([&](int64_t lo, int64_t hi, double* sum) {
+      A_.multiply(x.data(), lo, hi, [&](int64_t i, double y0, double y1) {
+        out[2 * i] = b[2 * i] - y0;
+        out[2 * i + 1] = b[2 * i + 1] - y1;
+        sum[0] += out[2 * i] * out[2 * i];
+        sum[1] += out[2 * i + 1] * out[2 * i + 1];
+      });
+    })[0];
+  }
+
+  /// out = A in; returns w . out.
+  double product(const double* in, double* out, const double* w) {
+    return sum_rows<1>([&](int64_t lo, int64_t hi, double* sum) {
+      A_.multiply(in, lo, hi, [&](int64_t i, double y0, double y1) {
+        out[2 * i] = y0;
+        out[2 * i + 1] = y1;
+        sum[0] += w[2 * i] * y0;
+        sum[1] += w[2 * i + 1] * y1;
+      });
+    })[0];
+  }
+
+  /// Particle rows per chunk of the solver's loops. The chunks depend on the particle count
+  /// alone, and every sum over dofs is summed per chunk (even and odd dofs apart, then the
+  /// two) and then over the chunks in order: the same bits for any --threads (up to 1024
+  /// particles, one chunk: the serial sums).
+  static constexpr std::size_t kRows = 1024;
+
+  /// Calls body(lo, hi) for each chunk of particle rows [lo, hi) of the np_ rows, on threads
+  /// when there are enough (pinsim/parallel.hpp, Schedule::Even).
+  template <class Body>
+  void for_rows(Body&& body) const {
+    for_chunks(
+        static_cast<std::size_t>(np_), kRows,
+        [&](std::size_t, std::size_t lo, std::size_t hi) {
+          body(static_cast<int64_t>(lo), static_cast<int64_t>(hi));
+        },
+        Schedule::Even);
+  }
+
+  /// K sums over dofs, as for_rows: body(lo, hi, sum) adds dof i's term of sum k into
+  /// sum[2k + (i & 1)] (or all into sum[2k]); returns per k the chunks' sum[2k] + sum[2k + 1]
+  /// added in chunk order.
+  template <std::size_t K, class Body>
+  std::array<double, K> sum_rows(Body&& body) {
+    const std::size_t chunks = chunk_count(static_cast<std::size_t>(np_), kRows);
+    if (partial_.size() < 2 * K * chunks) partial_.resize(2 * K * chunks);
+    double* part = partial_.data();
+    for_chunks(
+        static_cast<std::size_t>(np_), kRows,
+        [&](std::size_t c, std::size_t lo, std::size_t hi) {
+          double sum[2 * K] = {};
+          body(static_cast<int64_t>(lo), static_cast<int64_t>(hi), sum);
+          std::copy(sum, sum + 2 * K, part + 2 * K * c);
+        },
+        Schedule::Even);
+    std::array<double, K> out{};
+    for (std::size_t c = 0; c < chunks; ++c)
+      for (std::size_t k = 0; k < K; ++k)
+        out[k] += part[2 * K * c + 2 * k] + part[2 * K * c + 2 * k + 1];
+    return out;
   }
 
   struct Solve {
@@ -168,11 +227,13 @@ class ImplicitEuler : public Integrator {
   /// The Jacobi preconditioner: 1 / a_ii (1 where a_ii = 0), as Eigen's
   /// DiagonalPreconditioner.
   void jacobi() {
-    for (int64_t i = 0; i < A_.rows(); ++i) {
-      const double* d = A_.value.data() + 4 * diag_block_[static_cast<std::size_t>(i)];
-      inv_diag_[2 * i] = d[0] != 0.0 ? 1.0 / d[0] : 1.0;
-      inv_diag_[2 * i + 1] = d[3] != 0.0 ? 1.0 / d[3] : 1.0;
-    }
+    for_rows([&](int64_t lo, int64_t hi) {
+      for (int64_t i = lo; i < hi; ++i) {
+        const double* d = A_.value.data() + 4 * diag_block_[static_cast<std::size_t>(i)];
+        inv_diag_[2 * i] = d[0] != 0.0 ? 1.0 / d[0] : 1.0;
+        inv_diag_[2 * i + 1] = d[3] != 0.0 ? 1.0 / d[3] : 1.0;
+      }
+    });
   }
 
   /// Preconditioned conjugate gradients on A dv_ = b_ from dv_, whose residual is r_ (Eigen's
@@ -181,7 +242,6 @@ class ImplicitEuler : public Integrator {
   /// iteration. Sums over dofs add even and odd dofs apart, then the two.
   Solve cg(double bb, Eigen::Index max_iterations) {
     Solve out;
-    const Eigen::Index n = b_.size();
     if (bb == 0.0) {
       dv_.setZero();
       out.converged = true;
@@ -195,38 +255,35 @@ class ImplicitEuler : public Integrator {
     double* z = z_.data();
     const double* d = inv_diag_.data();
     const double threshold = std::max(1e-24 * bb, std::numeric_limits<double>::min());
-    double rr[2] = {0.0, 0.0}, rz[2] = {0.0, 0.0};
-    for (Eigen::Index i = 0; i < n; ++i) {
-      p[i] = d[i] * r[i];
-      rr[i & 1] += r[i] * r[i];
-      rz[i & 1] += r[i] * p[i];
-    }
-    double r2 = rr[0] + rr[1], abs_new = rz[0] + rz[1];
+    const auto first = sum_rows<2>([&](int64_t lo, int64_t hi, double* sum) {
+      for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
+        p[i] = d[i] * r[i];
+        sum[i & 1] += r[i] * r[i];
+        sum[2 + (i & 1)] += r[i] * p[i];
+      }
+    });
+    double r2 = first[0], abs_new = first[1];
     Eigen::Index it = 0;
     while (!(r2 < threshold) && it < max_iterations && r2 == r2) {
-      double pq[2] = {0.0, 0.0};
-      A_.multiply(p, [&](int64_t i, double y0, double y1) {
-        q[2 * i] = y0;
-        q[2 * i + 1] = y1;
-        pq[0] += p[2 * i] * y0;
-        pq[1] += p[2 * i + 1] * y1;
+      const double alpha = abs_new / product(p, q, p);
+      const auto next = sum_rows<2>([&](int64_t lo, int64_t hi, double* sum) {
+        for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
+          x[i] += alpha * p[i];
+          r[i] -= alpha * q[i];
+          z[i] = d[i] * r[i];
+          sum[i & 1] += r[i] * r[i];
+          sum[2 + (i & 1)] += r[i] * z[i];
+        }
       });
-      const double alpha = abs_new / (pq[0] + pq[1]);
-      rr[0] = rr[1] = rz[0] = rz[1] = 0.0;
-      for (Eigen::Index i = 0; i < n; ++i) {
-        x[i] += alpha * p[i];
-        r[i] -= alpha * q[i];
-        z[i] = d[i] * r[i];
-        rr[i & 1] += r[i] * r[i];
-        rz[i & 1] += r[i] * z[i];
-      }
       ++it;
-      r2 = rr[0] + rr[1];
+      r2 = next[0];
       if (r2 < threshold) break;
       const double abs_old = abs_new;
-      abs_new = rz[0] + rz[1];
+      abs_new = next[1];
       const double beta = abs_new / abs_old;
-      for (Eigen::Index i = 0; i < n; ++i) p[i] = z[i] + beta * p[i];
+      for_rows([&](int64_t lo, int64_t hi) {
+        for (int64_t i = 2 * lo; i < 2 * hi; ++i) p[i] = z[i] + beta * p[i];
+      });
     }
     out.iterations = it;
     out.residual = std::sqrt(r2 / bb);
@@ -241,7 +298,6 @@ class ImplicitEuler : public Integrator {
   /// into the products with A and three passes per iteration.
   Solve bicgstab(double bb, Eigen::Index max_iterations) {
     Solve out;
-    const Eigen::Index n = b_.size();
     if (bb == 0.0) {
       dv_.setZero();
       out.converged = true;
@@ -261,13 +317,14 @@ class ImplicitEuler : public Integrator {
     const double tol2 = 1e-24 * bb;
     const double eps2 =
         std::numeric_limits<double>::epsilon() * std::numeric_limits<double>::epsilon();
-    double s2[2] = {0.0, 0.0};
-    for (Eigen::Index i = 0; i < n; ++i) {
-      r0[i] = r[i];
-      p[i] = v[i] = 0.0;
-      s2[i & 1] += r[i] * r[i];
-    }
-    double r2 = s2[0] + s2[1], r0_sqnorm = r2, rho_next = r2;
+    double r2 = sum_rows<1>([&](int64_t lo, int64_t hi, double* sum) {
+      for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
+        r0[i] = r[i];
+        p[i] = v[i] = 0.0;
+        sum[i & 1] += r[i] * r[i];
+      }
+    })[0];
+    double r0_sqnorm = r2, rho_next = r2;
     double rho = 1.0, alpha = 1.0, w = 1.0;
     Eigen::Index it = 0;
     while (r2 > tol2 && it < max_iterations) {
@@ -275,57 +332,59 @@ class ImplicitEuler : public Integrator {
       rho = rho_next;
       if (std::abs(rho) < eps2 * r0_sqnorm) {  // r nearly orthogonal to r0: restart
         r2 = residual_of(dv_, r_);
-        for (Eigen::Index i = 0; i < n; ++i) r0[i] = r[i];
+        for_rows([&](int64_t lo, int64_t hi) {
+          for (int64_t i = 2 * lo; i < 2 * hi; ++i) r0[i] = r[i];
+        });
         rho = r0_sqnorm = r2;
       }
       const double beta = (rho / rho_old) * (alpha / w);
-      for (Eigen::Index i = 0; i < n; ++i) {
-        p[i] = r[i] + beta * (p[i] - w * v[i]);
-        y[i] = d[i] * p[i];
-      }
-      double r0v[2] = {0.0, 0.0};
-      A_.multiply(y, [&](int64_t i, double y0, double y1) {
-        v[2 * i] = y0;
-        v[2 * i + 1] = y1;
-        r0v[0] += r0[2 * i] * y0;
-        r0v[1] += r0[2 * i + 1] * y1;
-      });
-      alpha = rho / (r0v[0] + r0v[1]);
-      s2[0] = s2[1] = 0.0;
-      for (Eigen::Index i = 0; i < n; ++i) {
-        sv[i] = r[i] - alpha * v[i];
-        z[i] = d[i] * sv[i];
-        s2[i & 1] += sv[i] * sv[i];
-      }
-      ++it;
-      if (s2[0] + s2[1] <= tol2) {  // converged halfway: x + alpha y
-        for (Eigen::Index i = 0; i < n; ++i) {
-          x[i] += alpha * y[i];
-          r[i] = sv[i];
+      for_rows([&](int64_t lo, int64_t hi) {
+        for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
+          p[i] = r[i] + beta * (p[i] - w * v[i]);
+          y[i] = d[i] * p[i];
         }
-        r2 = s2[0] + s2[1];
+      });
+      alpha = rho / product(y, v, r0);
+      const double s2 = sum_rows<1>([&](int64_t lo, int64_t hi, double* sum) {
+        for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
+          sv[i] = r[i] - alpha * v[i];
+          z[i] = d[i] * sv[i];
+          sum[i & 1] += sv[i] * sv[i];
+        }
+      })[0];
+      ++it;
+      if (s2 <= tol2) {  // converged halfway: x + alpha y
+        for_rows([&](int64_t lo, int64_t hi) {
+          for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
+            x[i] += alpha * y[i];
+            r[i] = sv[i];
+          }
+        });
+        r2 = s2;
         break;
       }
-      double tt[2] = {0.0, 0.0}, ts[2] = {0.0, 0.0};
-      A_.multiply(z, [&](int64_t i, double y0, double y1) {
-        t[2 * i] = y0;
-        t[2 * i + 1] = y1;
-        tt[0] += y0 * y0;
-        tt[1] += y1 * y1;
-        ts[0] += y0 * sv[2 * i];
-        ts[1] += y1 * sv[2 * i + 1];
+      const auto tz = sum_rows<2>([&](int64_t lo, int64_t hi, double* sum) {
+        A_.multiply(z, lo, hi, [&](int64_t i, double y0, double y1) {
+          t[2 * i] = y0;
+          t[2 * i + 1] = y1;
+          sum[0] += y0 * y0;
+          sum[1] += y1 * y1;
+          sum[2] += y0 * sv[2 * i];
+          sum[3] += y1 * sv[2 * i + 1];
+        });
       });
-      const double t2 = tt[0] + tt[1];
-      w = t2 > 0.0 ? (ts[0] + ts[1]) / t2 : 0.0;
-      double rn[2] = {0.0, 0.0}, rh[2] = {0.0, 0.0};
-      for (Eigen::Index i = 0; i < n; ++i) {
-        x[i] += alpha * y[i] + w * z[i];
-        r[i] = sv[i] - w * t[i];
-        rn[i & 1] += r[i] * r[i];
-        rh[i & 1] += r0[i] * r[i];
-      }
-      r2 = rn[0] + rn[1];
-      rho_next = rh[0] + rh[1];
+      const double t2 = tz[0];
+      w = t2 > 0.0 ? tz[1] / t2 : 0.0;
+      const auto rn = sum_rows<2>([&](int64_t lo, int64_t hi, double* sum) {
+        for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
+          x[i] += alpha * y[i] + w * z[i];
+          r[i] = sv[i] - w * t[i];
+          sum[i & 1] += r[i] * r[i];
+          sum[2 + (i & 1)] += r0[i] * r[i];
+        }
+      });
+      r2 = rn[0];
+      rho_next = rn[1];
     }
     out.iterations = it;
     out.residual = std::sqrt(r2 / bb);
@@ -348,13 +407,16 @@ class ImplicitEuler : public Integrator {
   void assemble(Simulation& sim, const State& s, Eigen::Index n, double h,
                 const Eigen::Map<const Eigen::VectorXd>& v0) {
     auto start = [&] {
-      std::fill(A_.value.begin(), A_.value.end(), 0.0);
-      for (int64_t i = 0; i < A_.rows(); ++i) {
-        double* d = A_.value.data() + 4 * diag_block_[static_cast<std::size_t>(i)];
-        d[0] = m_[2 * i] > 0.0 ? m_[2 * i] : 1.0;
-        d[3] = m_[2 * i + 1] > 0.0 ? m_[2 * i + 1] : 1.0;
-      }
-      kv_.setZero();
+      for_rows([&](int64_t lo, int64_t hi) {
+        const auto at = [&](int64_t i) { return A_.value.begin() + 4 * A_.first[i]; };
+        std::fill(at(lo), at(hi), 0.0);
+        for (int64_t i = lo; i < hi; ++i) {
+          double* d = A_.value.data() + 4 * diag_block_[static_cast<std::size_t>(i)];
+          d[0] = m_[2 * i] > 0.0 ? m_[2 * i] : 1.0;
+          d[3] = m_[2 * i + 1] > 0.0 ? m_[2 * i + 1] : 1.0;
+          kv_[2 * i] = kv_[2 * i + 1] = 0.0;
+        }
+      });
     };
     bool done = false;
     if (same_size_and_pins(n)) {
@@ -398,7 +460,6 @@ class ImplicitEuler : public Integrator {
     Eigen::Index n;
     std::size_t k = 0, b = 0;  ///< single entries, blocks so far
     bool ok = true;
-    static constexpr std::size_t kAhead = 24;
 
     bool complete() const { return ok && k == p->single.size() && b == p->block_key.size(); }
     void add(uint32_t row, uint32_t col, double value) {
@@ -417,7 +478,6 @@ class ImplicitEuler : public Integrator {
         return;
       }
       const int64_t s = p->block[b];
-      if (b + kAhead < p->block.size()) __builtin_prefetch(a + 4 * p->block[b + kAhead], 1);
       if (s >= 0) {
         double* q = a + 4 * s;
         q[0] += scale * v[0];
@@ -574,26 +634,43 @@ class ImplicitEuler : public Integrator {
   /// Krylov iteration's own residual, which rounding can make drift from it).
   void check_accuracy(Simulation& sim, const State& s, const Eigen::VectorXd& b,
                       const Eigen::VectorXd& dv, const Eigen::VectorXd& m, double h) {
-    double r2 = 0.0, v2 = 0.0, worst = 0.0;
-    Eigen::Index at = -1;
     const double* vel = s.v.data();
-    auto dof = [&](Eigen::Index i, double y) {
-      if (!(m[i] > 0.0)) return;  // pinned: r_i = 0
-      const double ri = y - b[i];
-      const double vi = vel[i];
-      v2 += m[i] * (vi * vi + dv[i] * dv[i]);
-      const double e = ri * ri / m[i];
-      r2 += e;
-      if (at < 0 || !(e <= worst)) {  // a NaN is the worst
-        worst = e;
-        at = i;
-      }
-    };
-    A_.multiply(dv.data(), [&](int64_t i, double y0, double y1) {
-      dof(2 * i, y0);
-      dof(2 * i + 1, y1);
+    // Per chunk of rows: the sums, and the dof with the largest r_i^2 / m_i (a NaN is the
+    // worst) in worst_[2 c] (its value) and worst_[2 c + 1] (the dof, -1: none).
+    const std::size_t chunks = chunk_count(static_cast<std::size_t>(np_), kRows);
+    if (worst_.size() < 2 * chunks) worst_.resize(2 * chunks);
+    const auto sums = sum_rows<2>([&](int64_t lo, int64_t hi, double* sum) {
+      double worst = 0.0;
+      Eigen::Index at = -1;
+      auto dof = [&](Eigen::Index i, double y) {
+        if (!(m[i] > 0.0)) return;  // pinned: r_i = 0
+        const double ri = y - b[i];
+        const double vi = vel[i];
+        sum[2] += m[i] * (vi * vi + dv[i] * dv[i]);
+        const double e = ri * ri / m[i];
+        sum[0] += e;
+        if (at < 0 || !(e <= worst)) {  // a NaN is the worst
+          worst = e;
+          at = i;
+        }
+      };
+      A_.multiply(dv.data(), lo, hi, [&](int64_t i, double y0, double y1) {
+        dof(2 * i, y0);
+        dof(2 * i + 1, y1);
+      });
+      const std::size_t c = static_cast<std::size_t>(lo) / kRows;
+      worst_[2 * c] = worst;
+      worst_[2 * c + 1] = static_cast<double>(at);
     });
+    const double r2 = sums[0], v2 = sums[1];
     if (r2 <= 1e-6 * v2) return;
+    double worst = 0.0;
+    Eigen::Index at = -1;
+    for (std::size_t c = 0; c < chunks; ++c)
+      if (worst_[2 * c + 1] >= 0.0 && (at < 0 || !(worst_[2 * c] <= worst))) {
+        worst = worst_[2 * c];
+        at = static_cast<Eigen::Index>(worst_[2 * c + 1]);
+      }
     throw NumericError(
         NumericError::Kind::SolverFailure,
         fmt::format("implicit_euler: the linear solve cannot be trusted: its velocity error "
@@ -665,6 +742,9 @@ class ImplicitEuler : public Integrator {
   Slots px_, pv_;
   std::vector<int64_t> diag_block_, tblock_;
   std::vector<double> root_diag_;  ///< |a_ii|^1/2 (is_symmetric)
+  int64_t np_ = 0;                 ///< particles (block rows) of this step
+  std::vector<double> partial_;    ///< sum_rows' per-chunk sums
+  std::vector<double> worst_;      ///< check_accuracy's per-chunk worst dof
   std::vector<bool> free_;
   BlockSparseMatrix2 A_;
 };
