@@ -2,22 +2,25 @@
 // edges (ks 50) and shears (ks 20), gravity; dt = 1 ms): the cost of one step with
 // symplectic Euler and with implicit Euler, and the cost of writing one trajectory frame of
 // its 10,000 particles (CSV and HDF5) against one symplectic step. Prints CSV lines
-// "figure,value,unit" (medians of repeats, thread CPU time; ratios from the same run); the
-// step costs at --threads 1 (all the work on this thread) and at the default thread count.
-// Not a test: figures for docs/bench_and_stress.md (after issue 15's deliverable 6, load
-// average 6.4: implicit 7.5 ms, 10 to 12 x a symplectic step; main before it 11.4 ms, 18.7 x).
+// "figure,value,unit". The two integrators' steps are timed in alternation in one run
+// (medians, and the median of the per-round ratios): at --threads 1 in this thread's CPU
+// time (all the step's work), at the default thread count in wall time (the workers' CPU
+// is not on this thread's clock). Not a test: figures for docs/bench_and_stress.md.
 //
 // Usage: pinsim_bench_cloth [n=100] [out_dir=/tmp/pinsim_bench_cloth]
 #include <algorithm>
 #include <charconv>
+#include <chrono>
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <string_view>
+#include <utility>
 #include <vector>
 
 #include "cloth_scene.hpp"
@@ -43,6 +46,19 @@ double cpu_ms() {
   return 1e3 * static_cast<double>(ts.tv_sec) + 1e-6 * static_cast<double>(ts.tv_nsec);
 }
 
+/// Wall time, ms (steady clock).
+double wall_ms() {
+  return 1e-6 * static_cast<double>(std::chrono::duration_cast<std::chrono::nanoseconds>(
+                                        std::chrono::steady_clock::now().time_since_epoch())
+                                        .count());
+}
+
+/// The median of `t` (t is reordered).
+double median(std::vector<double> t) {
+  std::nth_element(t.begin(), t.begin() + static_cast<std::ptrdiff_t>(t.size() / 2), t.end());
+  return t[t.size() / 2];
+}
+
 /// Median thread CPU milliseconds of `fn` over `repeats` calls (after `warm` untimed calls).
 double median_ms(const std::function<void()>& fn, int repeats, int warm) {
   for (int i = 0; i < warm; ++i) fn();
@@ -52,8 +68,7 @@ double median_ms(const std::function<void()>& fn, int repeats, int warm) {
     fn();
     t.push_back(cpu_ms() - a);
   }
-  std::nth_element(t.begin(), t.begin() + repeats / 2, t.end());
-  return t[static_cast<std::size_t>(repeats / 2)];
+  return median(std::move(t));
 }
 
 }  // namespace
@@ -73,27 +88,51 @@ int main(int argc, char** argv) {
   pinsim::PluginLoader loader(pinsim::plugin_search_dirs());
   std::printf("figure,value,unit\nparticles,%d,\n", n * n);
 
-  auto step_ms = [&](const char* integrator, int repeats, unsigned threads) {
-    const pinsim::Scene scene =
-        pinsim::parse_scene(cloth_scene(n, integrator, "csv").dump(), "cloth.json", ".");
-    pinsim::RunOptions options;
-    options.threads = threads;
-    pinsim::Simulation sim(scene, loader, options);
-    return median_ms([&] { sim.step(); }, repeats, 5);
+  // Both integrators' simulations side by side, their steps timed in alternation (3
+  // symplectic steps, then one implicit step, per round): the machine's speed drifts by
+  // 20-30 % over seconds here (a shared virtual machine), and a ratio of two medians taken
+  // seconds apart carries that drift; the median of the per-round ratios does not.
+  struct Pair {
+    double symplectic, implicit, ratio;
+  };
+  auto steps = [&](unsigned threads, int rounds, double (*clock)()) {
+    auto make = [&](const char* integrator) {
+      const pinsim::Scene scene =
+          pinsim::parse_scene(cloth_scene(n, integrator, "csv").dump(), "cloth.json", ".");
+      pinsim::RunOptions options;
+      options.threads = threads;
+      return std::make_unique<pinsim::Simulation>(scene, loader, options);
+    };
+    auto sym = make("symplectic_euler"), imp = make("implicit_euler");
+    for (int i = 0; i < 5; ++i) {
+      sym->step();
+      imp->step();
+    }
+    std::vector<double> ts, ti, ratio;
+    for (int r = 0; r < rounds; ++r) {
+      const double a = clock();
+      for (int k = 0; k < 3; ++k) sym->step();
+      const double b = clock();
+      imp->step();
+      const double c = clock();
+      ts.push_back((b - a) / 3.0);
+      ti.push_back(c - b);
+      ratio.push_back(ti.back() / ts.back());
+    }
+    return Pair{median(ts), median(ti), median(ratio)};
   };
   // One thread: this thread's CPU time is all of the step's work.
-  const double symplectic1 = step_ms("symplectic_euler", 101, 1);
-  const double implicit1 = step_ms("implicit_euler", 31, 1);
-  std::printf("symplectic_euler_step_1_thread,%.4f,ms\n", symplectic1);
-  std::printf("implicit_euler_step_1_thread,%.4f,ms\n", implicit1);
-  std::printf("implicit_over_symplectic_1_thread,%.2f,\n", implicit1 / symplectic1);
-  // The default thread count (the machine's cores): the springs' forces run in chunks on
-  // the workers too, whose CPU time this thread's clock does not see.
-  const double symplectic = step_ms("symplectic_euler", 101, 0);
-  const double implicit = step_ms("implicit_euler", 31, 0);
-  std::printf("symplectic_euler_step,%.4f,ms\n", symplectic);
-  std::printf("implicit_euler_step,%.4f,ms\n", implicit);
-  std::printf("implicit_over_symplectic,%.2f,\n", implicit / symplectic);
+  const Pair one = steps(1, 41, cpu_ms);
+  std::printf("symplectic_euler_step_1_thread,%.4f,ms\n", one.symplectic);
+  std::printf("implicit_euler_step_1_thread,%.4f,ms\n", one.implicit);
+  std::printf("implicit_over_symplectic_1_thread,%.2f,\n", one.ratio);
+  // The default thread count (the machine's cores): the work runs on the workers too, whose
+  // CPU time this thread's clock does not see: wall time (what a user waits for).
+  const Pair all = steps(0, 41, wall_ms);
+  const double symplectic = all.symplectic;
+  std::printf("symplectic_euler_step_wall,%.4f,ms\n", all.symplectic);
+  std::printf("implicit_euler_step_wall,%.4f,ms\n", all.implicit);
+  std::printf("implicit_over_symplectic_wall,%.2f,\n", all.ratio);
   {
     const pinsim::Scene scene =
         pinsim::parse_scene(cloth_scene(n, "implicit_euler", "csv").dump(), "cloth.json", ".");
