@@ -129,6 +129,10 @@ int main(int argc, char** argv) {
   // The default thread count (the machine's cores): the work runs on the workers too, whose
   // CPU time this thread's clock does not see: wall time (what a user waits for).
   const Pair all = steps(0, 41, wall_ms);
+  const Pair one_wall = steps(1, 41, wall_ms);
+  std::printf("symplectic_euler_step_1_thread_wall,%.4f,ms\n", one_wall.symplectic);
+  std::printf("implicit_euler_step_1_thread_wall,%.4f,ms\n", one_wall.implicit);
+  std::printf("implicit_over_symplectic_1_thread_wall,%.2f,\n", one_wall.ratio);
   const double symplectic = all.symplectic;
   std::printf("symplectic_euler_step_wall,%.4f,ms\n", all.symplectic);
   std::printf("implicit_euler_step_wall,%.4f,ms\n", all.implicit);
