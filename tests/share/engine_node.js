@@ -120,6 +120,31 @@ require(path.resolve(enginePath))().then((m) => {
           `score ${s.score} (native ${nrec.score}), steps ${s.steps} (native ${nrec.steps})`);
   }
 
+  // 2b. Recordings the page's "load" button may be given (any file): refused at once with
+  // the JSON path, never rerun wrong (an unknown input skipped, inputs applied late) nor
+  // for ever (an edited step count of 1e18: the ball rests in the plunger lane).
+  const base = { scene: "pinball.json", steps: 10, state_hash: "0",
+                 inputs: [{ step: 0, input: flippers[0], action: "press" }] };
+  const bad = [
+    [(j) => { j.steps = 1e18; }, "recording: steps: 1000000000000000000 steps of dt = 0.0002 s"],
+    [(j) => { j.inputs[0].input = "lefft"; }, "recording: inputs[0].input: unknown input 'lefft'"],
+    [(j) => { j.inputs[0].step = 11; }, "recording: inputs[0].step: step 11 is after the recording's 10 steps"],
+    [(j) => { j.inputs[0].step = 5; j.inputs.push({ step: 4, input: flippers[0], action: "release" }); },
+     "recording: inputs[1].step: step 4 comes before the previous input's 5"],
+    [(j) => { j.inputs[0].action = "hold"; }, "recording: inputs[0].action: expected \"press\" or \"release\""],
+    [(j) => { j.inputs = 3; }, "recording: inputs: expected a list of inputs"],
+    [(j) => { delete j.steps; }, "recording: steps: required step count"],
+  ];
+  for (const [change, message] of bad) {
+    const j = JSON.parse(JSON.stringify(base));
+    change(j);
+    const t0 = Date.now();
+    const rc = api.rerun(JSON.stringify(j));
+    const err = rc === 0 ? "" : api.error();
+    check(rc !== 0 && err.includes(message) && Date.now() - t0 < 5000,
+          `the engine refuses a bad recording (${message.slice(0, 40)}...): ` + (err || "accepted"));
+  }
+
   // 3. floating-point flags.
   if (arg("native-build")) checkFlags(arg("native-build"), "native build");
   if (arg("web-build")) checkFlags(arg("web-build"), "web build");

@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "core/format.hpp"
+#include "core/input_error.hpp"
 #include "pictures/render_data.hpp"
 
 namespace pinsim {
@@ -111,9 +113,73 @@ json PinballGame::recording(const std::string& scene_file) const {
           {"ball", ball}};
 }
 
-void PinballGame::rerun(const json& rec) {
+bool read_action(const json& entry, const Loc& at) {
+  const std::string a = read_string_or(entry, "action", "", at);
+  if (a != "press" && a != "release")
+    (at / "action")
+        .fail("expected \"press\" or \"release\", " + describe(entry.value("action", json())));
+  return a == "press";
+}
+
+void check_input_name(const std::string& input, const Loc& at,
+                      const std::vector<std::string>& names) {
+  if (std::find(names.begin(), names.end(), input) != names.end()) return;
+  std::string list;
+  for (const std::string& n : names) list += (list.empty() ? "'" : ", '") + n + "'";
+  at.fail("unknown input '" + input + "': this table's inputs are " +
+          (list.empty() ? std::string("none") : list));
+}
+
+void check_recording(const json& rec, const std::string& file, bool scene_given) {
+  const Loc root{file, ""};
+  require_object(rec, root);
+  read_string_or(rec, "scene", "", root);  // "": the embedded default scene
+  if (!scene_given && !rec.contains("scene"))
+    (root / "scene").fail("required scene file is missing (or give SCENE on the command line)");
+  if (!rec.contains("steps")) (root / "steps").fail("required step count is missing");
+  read_count_or(rec, "steps", 0, root);
+  if (read_string_or(rec, "state_hash", "", root).empty())
+    (root / "state_hash").fail("required state hash is missing");
+  if (!rec.contains("inputs") || !rec["inputs"].is_array())
+    (root / "inputs").fail("expected a list of inputs, " + describe(rec.value("inputs", json())));
+  const json& in = rec["inputs"];
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const Loc at = (root / "inputs")[i];
+    require_object(in[i], at);
+    if (!in[i].contains("step")) (at / "step").fail("required step number is missing");
+    read_count_or(in[i], "step", 0, at);
+    if (read_string_or(in[i], "input", "", at).empty())
+      (at / "input").fail("required input name is missing");
+    read_action(in[i], at);
+  }
+}
+
+void PinballGame::rerun(const json& rec, const std::string& file) {
+  check_recording(rec, file, true);
+  const Loc root{file, ""};
   const uint64_t n = rec.at("steps").get<uint64_t>();
+  const double seconds = static_cast<double>(n) * scene_.dt;
+  if (!(seconds <= kMaxRerunSeconds))
+    (root / "steps")
+        .fail(std::to_string(n) + " steps of dt = " + num(scene_.dt) + " s are " + num(seconds) +
+              " s of play, more than the limit of " + num(kMaxRerunSeconds) + " s (24 hours)");
+  // Each input one of the table's, in step order, within the recording's steps: anything
+  // else would be skipped or applied late by the rerun, silently.
   const json& in = rec.at("inputs");
+  for (std::size_t i = 0; i < in.size(); ++i) {
+    const Loc at = (root / "inputs")[i];
+    check_input_name(in[i].at("input").get<std::string>(), at / "input", input_names_);
+    const uint64_t step = in[i].at("step").get<uint64_t>();
+    if (step > n)
+      (at / "step")
+          .fail("step " + std::to_string(step) + " is after the recording's " + std::to_string(n) +
+                " steps");
+    if (i > 0 && step < in[i - 1].at("step").get<uint64_t>())
+      (at / "step")
+          .fail("step " + std::to_string(step) + " comes before the previous input's " +
+                std::to_string(in[i - 1].at("step").get<uint64_t>()) +
+                " (inputs are in step order)");
+  }
   std::size_t k = 0;
   while (steps() < n) {
     while (k < in.size() && in[k].at("step").get<uint64_t>() <= steps()) {

@@ -9,12 +9,30 @@
 #include <string>
 #include <vector>
 
+#include "core/json_read.hpp"
 #include "core/plugin_instance.hpp"
 #include "core/scene.hpp"
 #include "core/simulation.hpp"
 #include "pictures/render_data.hpp"
 
 namespace pinsim {
+
+/// The most game time a recording may rerun, s: a day of play (4.3e8 steps of the table's
+/// 0.2 ms, about 2.5 h to rerun here); an edited "steps" of 1e18 would otherwise run for ever.
+inline constexpr double kMaxRerunSeconds = 86400.0;
+
+/// "press" or "release" in entry's "action" at `at`; InputError otherwise.
+bool read_action(const nlohmann::json& entry, const Loc& at);
+
+/// Refuses an input name the table does not have (a typo would otherwise be ignored, and
+/// the game run without that press), naming the table's inputs.
+void check_input_name(const std::string& input, const Loc& at,
+                      const std::vector<std::string>& names);
+
+/// Checks a recording's form (`play --record`'s JSON: "scene", "steps", "state_hash",
+/// "inputs" [{"step", "input", "action"}]); InputError naming `file` and the JSON path of the
+/// first problem. `scene_given`: the scene comes from elsewhere, "scene" may be absent.
+void check_recording(const nlohmann::json& rec, const std::string& file, bool scene_given);
 
 /// Rules; defaults suit configs/pinball.json.
 struct GameRules {
@@ -63,7 +81,12 @@ class PinballGame {
   ///  "balls_left", "game_over", "ball": [x, y]}
   nlohmann::json recording(const std::string& scene_file) const;
   /// Reruns a recording's inputs for its number of steps (the scene must be the same).
-  void rerun(const nlohmann::json& recording);
+  /// First refuses (InputError naming `file` and the JSON path) what a rerun could not use
+  /// or would get silently wrong: a malformed recording (check_recording), an input the
+  /// table lacks, inputs out of step order or after the last step, and more than
+  /// kMaxRerunSeconds of play (an edited step count would run for ever). `pinsim play
+  /// --rerun` and the web page's rerun both come here.
+  void rerun(const nlohmann::json& recording, const std::string& file = "recording");
 
  private:
   void serve_ball();
