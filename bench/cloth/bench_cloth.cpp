@@ -2,10 +2,11 @@
 // edges (ks 50) and shears (ks 20), gravity; dt = 1 ms): the cost of one step with
 // symplectic Euler and with implicit Euler, and the cost of writing one trajectory frame of
 // its 10,000 particles (CSV and HDF5) against one symplectic step. Prints CSV lines
-// "figure,value,unit". The two integrators' steps are timed in alternation in one run
+// "figure,value,unit". The two integrators' steps are timed in alternating blocks in one run
 // (medians, and the median of the per-round ratios): at --threads 1 in this thread's CPU
-// time (all the step's work), at the default thread count in wall time (the workers' CPU
-// is not on this thread's clock). Not a test: figures for docs/bench_and_stress.md.
+// time (all the step's work) and in wall time, at the default thread count in wall time
+// (the workers' CPU is not on this thread's clock). Not a test: figures for
+// docs/bench_and_stress.md.
 //
 // Usage: pinsim_bench_cloth [n=100] [out_dir=/tmp/pinsim_bench_cloth]
 #include <algorithm>
@@ -88,10 +89,12 @@ int main(int argc, char** argv) {
   pinsim::PluginLoader loader(pinsim::plugin_search_dirs());
   std::printf("figure,value,unit\nparticles,%d,\n", n * n);
 
-  // Both integrators' simulations side by side, their steps timed in alternation (3
-  // symplectic steps, then one implicit step, per round): the machine's speed drifts by
-  // 20-30 % over seconds here (a shared virtual machine), and a ratio of two medians taken
-  // seconds apart carries that drift; the median of the per-round ratios does not.
+  // Both integrators' simulations side by side, their steps timed in alternation (per
+  // round 60 symplectic steps, then 20 implicit steps; 9 rounds): the machine's speed drifts
+  // by 20-30 % over seconds here (a shared virtual machine), and a ratio of two medians taken
+  // seconds apart carries that drift; the median of the per-round ratios does not. Blocks
+  // of steps, not single steps: a step right after the other simulation's finds oneTBB's
+  // workers and the caches in another state than `pinsim run` does.
   struct Pair {
     double symplectic, implicit, ratio;
   };
@@ -109,30 +112,32 @@ int main(int argc, char** argv) {
       imp->step();
     }
     std::vector<double> ts, ti, ratio;
+    constexpr int kBlock = 20;
     for (int r = 0; r < rounds; ++r) {
       const double a = clock();
-      for (int k = 0; k < 3; ++k) sym->step();
+      for (int k = 0; k < 3 * kBlock; ++k) sym->step();
       const double b = clock();
-      imp->step();
+      for (int k = 0; k < kBlock; ++k) imp->step();
       const double c = clock();
-      ts.push_back((b - a) / 3.0);
-      ti.push_back(c - b);
+      ts.push_back((b - a) / (3.0 * kBlock));
+      ti.push_back((c - b) / kBlock);
       ratio.push_back(ti.back() / ts.back());
     }
     return Pair{median(ts), median(ti), median(ratio)};
   };
   // One thread: this thread's CPU time is all of the step's work.
-  const Pair one = steps(1, 41, cpu_ms);
+  const Pair one = steps(1, 9, cpu_ms);
   std::printf("symplectic_euler_step_1_thread,%.4f,ms\n", one.symplectic);
   std::printf("implicit_euler_step_1_thread,%.4f,ms\n", one.implicit);
   std::printf("implicit_over_symplectic_1_thread,%.2f,\n", one.ratio);
-  // The default thread count (the machine's cores): the work runs on the workers too, whose
-  // CPU time this thread's clock does not see: wall time (what a user waits for).
-  const Pair all = steps(0, 41, wall_ms);
-  const Pair one_wall = steps(1, 41, wall_ms);
+  // The same in wall time, then at the default thread count (the machine's cores), where the
+  // work runs on the workers too, whose CPU time this thread's clock does not see: wall time
+  // (what a user waits for).
+  const Pair one_wall = steps(1, 9, wall_ms);
   std::printf("symplectic_euler_step_1_thread_wall,%.4f,ms\n", one_wall.symplectic);
   std::printf("implicit_euler_step_1_thread_wall,%.4f,ms\n", one_wall.implicit);
   std::printf("implicit_over_symplectic_1_thread_wall,%.2f,\n", one_wall.ratio);
+  const Pair all = steps(0, 9, wall_ms);
   const double symplectic = all.symplectic;
   std::printf("symplectic_euler_step_wall,%.4f,ms\n", all.symplectic);
   std::printf("implicit_euler_step_wall,%.4f,ms\n", all.implicit);

@@ -15,7 +15,9 @@ PluginInfo DampedSpring::info() {
       "Ṙ = (v_k - v_l)·R̂. Rest length L defaults to the initial distance. Built on "
       "pinsim/constraint_spring.hpp with C = R - L.";
   i.arity = 2;
-  i.capabilities = PINSIM_CAP_INTERNAL | PINSIM_CAP_DISSIPATIVE;
+  // Concurrent: an instance keeps its scratch in itself (ConstraintSpring's add_force plan),
+  // nothing static; two instances may run at once.
+  i.capabilities = PINSIM_CAP_INTERNAL | PINSIM_CAP_DISSIPATIVE | PINSIM_CAP_CONCURRENT;
   i.params.push_back(real("ks", 100.0).min(0).units("N/m").doc("spring stiffness"));
   i.params.push_back(real("kd", 1.0).min(0).units("N s/m").doc("damping along the spring"));
   i.params.push_back(real("rest_length", -1.0)

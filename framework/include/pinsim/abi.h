@@ -48,11 +48,15 @@ typedef enum pinsim_kind { PINSIM_KIND_FORCE = 1, PINSIM_KIND_BACKEND = 2 } pins
 
 /** Capability flags (pinsim_plugin.capabilities). */
 enum {
-  PINSIM_CAP_ENERGY = 1u << 0,           /**< force: energy() is provided (conservative part) */
-  PINSIM_CAP_DFDX = 1u << 1,             /**< force: df/dx Jacobian is provided */
-  PINSIM_CAP_DFDV = 1u << 2,             /**< force: df/dv Jacobian is provided */
-  PINSIM_CAP_INTERNAL = 1u << 3,         /**< force: internal, so sum f = 0 and sum x*f = 0 */
-  PINSIM_CAP_DISSIPATIVE = 1u << 4,      /**< force: has a velocity-dependent damping part */
+  PINSIM_CAP_ENERGY = 1u << 0,      /**< force: energy() is provided (conservative part) */
+  PINSIM_CAP_DFDX = 1u << 1,        /**< force: df/dx Jacobian is provided */
+  PINSIM_CAP_DFDV = 1u << 2,        /**< force: df/dv Jacobian is provided */
+  PINSIM_CAP_INTERNAL = 1u << 3,    /**< force: internal, so sum f = 0 and sum x*f = 0 */
+  PINSIM_CAP_DISSIPATIVE = 1u << 4, /**< force: has a velocity-dependent damping part */
+  /** force: two instances may be called at the same time from two threads (they share no
+   *  mutable state: no static or global scratch). The host then may compute two such
+   *  forces' Jacobians at once. No ABI change: a host that predates it ignores the bit. */
+  PINSIM_CAP_CONCURRENT = 1u << 5,
   PINSIM_CAP_DISTANCE = 1u << 8,         /**< backend: distance() is provided */
   PINSIM_CAP_PARTICLE_CONTACT = 1u << 9, /**< backend: can resolve particle-particle contacts */
   PINSIM_CAP_INPUTS = 1u << 10,          /**< backend: input() is provided */

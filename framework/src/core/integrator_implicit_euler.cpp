@@ -418,25 +418,79 @@ class ImplicitEuler : public Integrator {
         }
       });
     };
+    const std::size_t forces = sim.forces().size();
     bool done = false;
-    if (same_size_and_pins(n)) {
+    if (same_size_and_pins(n) && px_.size() == forces) {
       start();
-      Scatter x{&px_, A_.value.data(), -h * h, kv_.data(), v0.data(), n};
-      Scatter v{&pv_, A_.value.data(), -h, nullptr, nullptr, n};
-      sim.jacobians(s, x.sink(), v.sink());
-      done = x.complete() && v.complete();
+      done = scatter_groups(n, h, v0, [&](std::size_t k, Scatter& x, Scatter& v) {
+        sim.jacobians_of(k, s, x.sink(), v.sink());
+      });
+      sim.count_jacobian_evaluation();
     }
     if (!done) {
-      sim.jacobian_entries(s, ex_, ev_);
-      pattern(n);
+      ex_.resize(forces);
+      ev_.resize(forces);
+      for (std::size_t k = 0; k < forces; ++k) {
+        ex_[k].clear();
+        ev_[k].clear();
+        sim.jacobians_of(k, s, ex_[k].sink(), ev_[k].sink());
+      }
+      sim.count_jacobian_evaluation();
+      pattern(n, sim);
       start();
-      Scatter x{&px_, A_.value.data(), -h * h, kv_.data(), v0.data(), n};
-      Scatter v{&pv_, A_.value.data(), -h, nullptr, nullptr, n};
-      x.feed(ex_);
-      v.feed(ev_);
-      ex_ = JacobianEntries();  // only the pattern's build needs them: free their memory
-      ev_ = JacobianEntries();
+      scatter_groups(n, h, v0, [&](std::size_t k, Scatter& x, Scatter& v) {
+        x.feed(ex_[k]);
+        v.feed(ev_[k]);
+      });
+      ex_.clear();  // only the pattern's build needs them: free their memory
+      ev_.clear();
     }
+  }
+
+  /// Adds every force's entries into A_ (already M) and kv_ (already 0), fill(k, x, v)
+  /// handing force k's entries to its Scatters. The forces go in groups (pattern()): group
+  /// 0, every force not in a group of its own in scene order, into A_ itself; each other
+  /// group, one concurrent() force with many entries, into its own zeroed copy of A's values
+  /// and of kv (on another thread when there is one: the plugin contract lets two such
+  /// forces run at once), added to A_ and kv_ afterwards, group by group. The groups depend
+  /// on the forces and their entries only, so the sums, and the bits, are the same for any
+  /// thread count. Returns whether every force's entries matched the pattern.
+  template <class Fill>
+  bool scatter_groups(Eigen::Index n, double h, const Eigen::Map<const Eigen::VectorXd>& v0,
+                      Fill&& fill) {
+    const std::size_t groups = 1 + own_.size();
+    if (complete_.size() != px_.size()) complete_.assign(px_.size(), 0);
+    for_chunks(groups, 1, [&](std::size_t g, std::size_t, std::size_t) {
+      double* a = A_.value.data();
+      double* kv = kv_.data();
+      if (g > 0) {
+        std::vector<double>& values = own_[g - 1].values;
+        Eigen::VectorXd& own_kv = own_[g - 1].kv;
+        values.assign(A_.value.size(), 0.0);
+        own_kv.setZero(n);
+        a = values.data();
+        kv = own_kv.data();
+      }
+      for (std::size_t k = 0; k < px_.size(); ++k) {
+        if (group_[k] != g) continue;
+        Scatter x{&px_[k], a, -h * h, kv, v0.data(), n};
+        Scatter v{&pv_[k], a, -h, nullptr, nullptr, n};
+        fill(k, x, v);
+        complete_[k] = x.complete() && v.complete();
+      }
+    });
+    for (const char c : complete_)
+      if (!c) return false;
+    if (groups == 1) return true;
+    for_rows([&](int64_t lo, int64_t hi) {
+      const std::size_t b = 4 * static_cast<std::size_t>(A_.first[static_cast<std::size_t>(lo)]),
+                        e = 4 * static_cast<std::size_t>(A_.first[static_cast<std::size_t>(hi)]);
+      for (const OwnGroup& o : own_) {
+        for (std::size_t q = b; q < e; ++q) A_.value[q] += o.values[q];
+        for (int64_t i = 2 * lo; i < 2 * hi; ++i) kv_[i] += o.kv[i];
+      }
+    });
+    return true;
   }
 
   /// Where one Jacobian's entries go in A_'s values: per single entry its value's index
@@ -568,15 +622,20 @@ class ImplicitEuler : public Integrator {
     return true;
   }
 
-  void pattern(Eigen::Index n) {
+  void pattern(Eigen::Index n, const Simulation& sim) {
     free_.assign(static_cast<std::size_t>(n), false);
     for (Eigen::Index i = 0; i < n; ++i) free_[static_cast<std::size_t>(i)] = m_[i] > 0.0;
     auto kept = [&](Eigen::Index r, Eigen::Index c) { return m_[r] > 0.0 && m_[c] > 0.0; };
     const int64_t np = n / 2;
     std::vector<uint64_t> keys;  // blocks (i << 32 | j)
-    keys.reserve(ex_.blocks.size() + ev_.blocks.size() + ex_.single.size() + ev_.single.size() +
-                 static_cast<std::size_t>(np));
-    for (const JacobianEntries* t : {&ex_, &ev_}) {
+    std::size_t total = static_cast<std::size_t>(np);
+    for (std::size_t k = 0; k < ex_.size(); ++k)
+      total +=
+          ex_[k].blocks.size() + ev_[k].blocks.size() + ex_[k].single.size() + ev_[k].single.size();
+    keys.reserve(total);
+    std::vector<const JacobianEntries*> all;
+    for (std::size_t k = 0; k < ex_.size(); ++k) all.insert(all.end(), {&ex_[k], &ev_[k]});
+    for (const JacobianEntries* t : all) {
       for (const auto& e : t->single)
         if (kept(e.row(), e.col()))
           keys.push_back(static_cast<uint64_t>(e.row() / 2) << 32 |
@@ -617,8 +676,24 @@ class ImplicitEuler : public Integrator {
         out.block[b] = kept(2 * i, 2 * j) ? A_.find(i, j) : -1;
       }
     };
-    slots(ex_, px_);
-    slots(ev_, pv_);
+    px_.resize(ex_.size());
+    pv_.resize(ex_.size());
+    group_.assign(ex_.size(), 0);
+    std::size_t own = 0;
+    bool first = true;  // the first concurrent force with many entries stays in group 0
+    for (std::size_t k = 0; k < ex_.size(); ++k) {
+      slots(ex_[k], px_[k]);
+      slots(ev_[k], pv_[k]);
+      const std::size_t entries =
+          ex_[k].blocks.size() + ev_[k].blocks.size() + ex_[k].single.size() + ev_[k].single.size();
+      if (!sim.forces()[k]->concurrent() || entries < options_.own_group_entries) continue;
+      if (first) {
+        first = false;
+        continue;
+      }
+      group_[k] = ++own;
+    }
+    own_.resize(own);
     diag_block_.resize(static_cast<std::size_t>(np));
     for (int64_t i = 0; i < np; ++i) diag_block_[static_cast<std::size_t>(i)] = A_.find(i, i);
     // The block of each block's transpose (the pattern need not be symmetric).
@@ -723,7 +798,8 @@ class ImplicitEuler : public Integrator {
         {"cg_iterations_max", cg_iterations_max_},
         {"worst_relative_residual", worst_residual_},
         {"lu_fallbacks", lu_fallbacks_},
-        {"bicgstab_solves", bicgstab_solves_}};
+        {"bicgstab_solves", bicgstab_solves_},
+        {"assembly_groups", 1 + own_.size()}};
   }
 
  private:
@@ -733,13 +809,21 @@ class ImplicitEuler : public Integrator {
            bicgstab_solves_ = 0;  ///< solves of a nonsymmetric A (BiCGSTAB, maybe then LU)
   double worst_residual_ = 0.0;
   Eigen::Matrix2Xd f_;
-  JacobianEntries ex_, ev_;         ///< df/dx, df/dv entries (kept capacity)
-  Eigen::VectorXd m_, kv_, b_, r_;  ///< masses (0: pinned), K v_n, right side, residual
+  std::vector<JacobianEntries> ex_, ev_;  ///< per force: df/dx, df/dv entries (pattern build)
+  Eigen::VectorXd m_, kv_, b_, r_;        ///< masses (0: pinned), K v_n, right side, residual
   Eigen::VectorXd r0_, p_, v_, y_, z_, s_, t_, inv_diag_;  ///< the Krylov solves' vectors
   // The pattern of A_: where each entry goes in A_'s values and the entries' positions it
   // was built for (Slots), the free dofs it was built for, each diagonal block's index.
   // tblock_: per block of A_, the block of its transpose (-1: not in the pattern).
-  Slots px_, pv_;
+  std::vector<Slots> px_, pv_;  ///< per force
+  /// Per force its group (scatter_groups): 0, or g >= 1 for own_[g - 1].
+  std::vector<std::size_t> group_;
+  struct OwnGroup {
+    std::vector<double> values;  ///< its forces' share of A's values
+    Eigen::VectorXd kv;          ///< and of K v0
+  };
+  std::vector<OwnGroup> own_;
+  std::vector<char> complete_;  ///< per force: its entries matched the pattern
   std::vector<int64_t> diag_block_, tblock_;
   std::vector<double> root_diag_;  ///< |a_ii|^1/2 (is_symmetric)
   int64_t np_ = 0;                 ///< particles (block rows) of this step

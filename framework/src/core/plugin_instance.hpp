@@ -43,6 +43,8 @@ class ForceInstance {
   bool provides_dfdx() const { return has_jacobians() && has_cap(PINSIM_CAP_DFDX); }
   bool provides_dfdv() const { return has_jacobians() && has_cap(PINSIM_CAP_DFDV); }
   bool dissipative() const { return has_cap(PINSIM_CAP_DISSIPATIVE); }
+  /// Its instances may run at the same time on two threads (PINSIM_CAP_CONCURRENT).
+  bool concurrent() const { return has_cap(PINSIM_CAP_CONCURRENT); }
   /// May depend on velocity: damping, or no energy declared (then nothing rules it out).
   bool velocity_dependent() const { return dissipative() || !declares_energy(); }
   void add_jacobians(const pinsim_state_view& s, const pinsim_triplet_sink* dfdx,

@@ -100,6 +100,7 @@ Simulation::Simulation(const Scene& scene, PluginLoader& loader, const RunOption
   }
   backend_ = create_backend(scene_, loader, bref, scene_.backend_scene, state_);
   for (const auto& f : scene_.forces) forces_.push_back(create_force(scene_, loader, f, state_));
+  fd_warned_.assign(forces_.size(), 0);
 
   e0_ = kinetic_energy(state_) + potential_energy(state_);
   // Energy scale for relative drift: total |terms| at the start, never zero.
@@ -196,39 +197,41 @@ void Simulation::jacobian_entries(const State& s, JacobianEntries& ex, JacobianE
 
 void Simulation::jacobians(const State& s, const pinsim_triplet_sink& sx,
                            const pinsim_triplet_sink& sv) {
+  for (std::size_t k = 0; k < forces_.size(); ++k) jacobians_of(k, s, sx, sv);
+  ++jacobian_evals_;
+}
+
+void Simulation::jacobians_of(std::size_t k, const State& s, const pinsim_triplet_sink& sx,
+                              const pinsim_triplet_sink& sv) {
   const pinsim_state_view view = s.view();
-  if (fd_warned_.size() != forces_.size()) fd_warned_.assign(forces_.size(), false);
-  for (std::size_t k = 0; k < forces_.size(); ++k) {
-    const ForceInstance& f = *forces_[k];
-    const bool has_x = f.provides_dfdx(), has_v = f.provides_dfdv();
-    const bool need_v = f.velocity_dependent();
-    if (has_x || has_v) f.add_jacobians(view, has_x ? &sx : nullptr, has_v ? &sv : nullptr);
-    if (!has_x || (!has_v && need_v)) {
-      if (!fd_warned_[k]) {
-        fd_warned_[k] = true;
-        spdlog::warn(
-            "{}: plugin '{}' provides no {} Jacobian; using central finite differences of its "
-            "force (2 force evaluations per degree of freedom per step)",
-            f.context(), f.plugin().name(), !has_x ? "df/dx" : "df/dv");
-      }
-      std::vector<Eigen::Triplet<double>> fd;
-      auto append = [&](const pinsim_triplet_sink& to) {
-        for (const auto& e : fd)
-          to.add(to.context, static_cast<uint32_t>(e.row()), static_cast<uint32_t>(e.col()),
-                 e.value());
-        fd.clear();
-      };
-      if (!has_x) {
-        fd_jacobian(f, s, false, fd);
-        append(sx);
-      }
-      if (!has_v && need_v) {
-        fd_jacobian(f, s, true, fd);
-        append(sv);
-      }
+  const ForceInstance& f = *forces_[k];
+  const bool has_x = f.provides_dfdx(), has_v = f.provides_dfdv();
+  const bool need_v = f.velocity_dependent();
+  if (has_x || has_v) f.add_jacobians(view, has_x ? &sx : nullptr, has_v ? &sv : nullptr);
+  if (!has_x || (!has_v && need_v)) {
+    if (!fd_warned_[k]) {
+      fd_warned_[k] = true;
+      spdlog::warn(
+          "{}: plugin '{}' provides no {} Jacobian; using central finite differences of its "
+          "force (2 force evaluations per degree of freedom per step)",
+          f.context(), f.plugin().name(), !has_x ? "df/dx" : "df/dv");
+    }
+    std::vector<Eigen::Triplet<double>> fd;
+    auto append = [&](const pinsim_triplet_sink& to) {
+      for (const auto& e : fd)
+        to.add(to.context, static_cast<uint32_t>(e.row()), static_cast<uint32_t>(e.col()),
+               e.value());
+      fd.clear();
+    };
+    if (!has_x) {
+      fd_jacobian(f, s, false, fd);
+      append(sx);
+    }
+    if (!has_v && need_v) {
+      fd_jacobian(f, s, true, fd);
+      append(sv);
     }
   }
-  ++jacobian_evals_;
 }
 
 int64_t Simulation::stiffest_force(const State& s, double h, double& weight) {

@@ -132,6 +132,12 @@ class Simulation {
   /// entries through add, blocks through add_blocks if the sink has it, else add). Counts as
   /// one evaluation.
   void jacobians(const State& s, const pinsim_triplet_sink& sx, const pinsim_triplet_sink& sv);
+  /// Force k's entries alone (forces().size() of them), as jacobians() hands them over; not
+  /// counted (the caller calls count_jacobian_evaluation() once for all). Two forces may be
+  /// asked at once from two threads if both are concurrent() (ForceInstance).
+  void jacobians_of(std::size_t k, const State& s, const pinsim_triplet_sink& sx,
+                    const pinsim_triplet_sink& sv);
+  void count_jacobian_evaluation() { ++jacobian_evals_; }
   /// The force whose Jacobian weighs most in implicit Euler's system M - h df/dv - h^2 df/dx
   /// at s: the largest (h^2 |df/dx| + h |df/dv|) / m over the entries of free rows (the
   /// square of h w for a spring), returned in `weight`; -1 if no force has a Jacobian entry.
@@ -194,7 +200,9 @@ class Simulation {
   uint64_t step_ = 0;
   uint64_t force_evals_ = 0;
   uint64_t jacobian_evals_ = 0;
-  std::vector<bool> fd_warned_;  ///< per force: finite-difference warning already given
+  /// per force: finite-difference warning already given (bytes, not vector<bool>: forces'
+  /// Jacobians may be asked for on two threads at once, jacobians_of)
+  std::vector<char> fd_warned_;
   StepChecks checks_;
   Eigen::VectorXd k_at_check_;  ///< kinetic energy per particle at the last energy check
   double e0_ = 0.0;
