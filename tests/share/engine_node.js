@@ -134,7 +134,20 @@ require(path.resolve(enginePath))().then((m) => {
     [(j) => { j.inputs[0].action = "hold"; }, "recording: inputs[0].action: expected \"press\" or \"release\""],
     [(j) => { j.inputs = 3; }, "recording: inputs: expected a list of inputs"],
     [(j) => { delete j.steps; }, "recording: steps: required step count"],
+    [(j) => { j.steps = "10"; }, "recording: steps: expected a non-negative integer"],
+    [(j) => { j.steps = 1.5; }, "recording: steps: expected a non-negative integer"],
+    // 2 hours of play: more than the page reruns (an hour), though the CLI would (a day)
+    [(j) => { j.steps = 36000000; }, "more than the limit of 3600 s"],
   ];
+  // Nested 100,000 deep: refused while parsing (nothing recursive meets it), the engine alive.
+  {
+    const deep = '{"steps": 10, "inputs": ' + "[".repeat(100000) + "]".repeat(100000) + "}";
+    const rc = api.rerun(deep);
+    const err = rc === 0 ? "" : api.error();
+    check(rc !== 0 && err.includes("nested deeper than"),
+          "the engine refuses a recording nested 100,000 deep: " + (err || "accepted"));
+    ok(api.rerun(JSON.stringify(base)));  // and still reruns a good one afterwards
+  }
   for (const [change, message] of bad) {
     const j = JSON.parse(JSON.stringify(base));
     change(j);

@@ -7,6 +7,7 @@
 #include <array>
 #include <cmath>
 #include <cstdint>
+#include <exception>
 #include <limits>
 #include <utility>
 #include <vector>
@@ -437,6 +438,7 @@ class ImplicitEuler : public Integrator {
       }
       sim.count_jacobian_evaluation();
       pattern(n, sim);
+      ++pattern_builds_;
       start();
       scatter_groups(n, h, v0, [&](std::size_t k, Scatter& x, Scatter& v) {
         x.feed(ex_[k]);
@@ -460,6 +462,7 @@ class ImplicitEuler : public Integrator {
                       Fill&& fill) {
     const std::size_t groups = 1 + own_.size();
     if (complete_.size() != px_.size()) complete_.assign(px_.size(), 0);
+    errors_.assign(px_.size(), nullptr);
     for_chunks(groups, 1, [&](std::size_t g, std::size_t, std::size_t) {
       double* a = A_.value.data();
       double* kv = kv_.data();
@@ -475,10 +478,18 @@ class ImplicitEuler : public Integrator {
         if (group_[k] != g) continue;
         Scatter x{&px_[k], a, -h * h, kv, v0.data(), n};
         Scatter v{&pv_[k], a, -h, nullptr, nullptr, n};
-        fill(k, x, v);
+        try {
+          fill(k, x, v);
+        } catch (...) {  // this group stops here; every group runs, whatever the threads
+          errors_[k] = std::current_exception();
+          break;
+        }
         complete_[k] = x.complete() && v.complete();
       }
     });
+    // A plugin's failure: the first failing force in scene order, for any thread count.
+    for (const std::exception_ptr& e : errors_)
+      if (e) std::rethrow_exception(e);
     for (const char c : complete_)
       if (!c) return false;
     if (groups == 1) return true;
@@ -724,7 +735,7 @@ class ImplicitEuler : public Integrator {
         sum[2] += m[i] * (vi * vi + dv[i] * dv[i]);
         const double e = ri * ri / m[i];
         sum[0] += e;
-        if (at < 0 || !(e <= worst)) {  // a NaN is the worst
+        if (at < 0 || (!std::isnan(worst) && !(e <= worst))) {  // the first NaN is the worst
           worst = e;
           at = i;
         }
@@ -742,7 +753,8 @@ class ImplicitEuler : public Integrator {
     double worst = 0.0;
     Eigen::Index at = -1;
     for (std::size_t c = 0; c < chunks; ++c)
-      if (worst_[2 * c + 1] >= 0.0 && (at < 0 || !(worst_[2 * c] <= worst))) {
+      if (worst_[2 * c + 1] >= 0.0 &&
+          (at < 0 || (!std::isnan(worst) && !(worst_[2 * c] <= worst)))) {
         worst = worst_[2 * c];
         at = static_cast<Eigen::Index>(worst_[2 * c + 1]);
       }
@@ -799,7 +811,8 @@ class ImplicitEuler : public Integrator {
         {"worst_relative_residual", worst_residual_},
         {"lu_fallbacks", lu_fallbacks_},
         {"bicgstab_solves", bicgstab_solves_},
-        {"assembly_groups", 1 + own_.size()}};
+        {"assembly_groups", 1 + own_.size()},
+        {"pattern_builds", pattern_builds_}};
   }
 
  private:
@@ -823,7 +836,9 @@ class ImplicitEuler : public Integrator {
     Eigen::VectorXd kv;          ///< and of K v0
   };
   std::vector<OwnGroup> own_;
-  std::vector<char> complete_;  ///< per force: its entries matched the pattern
+  std::vector<char> complete_;              ///< per force: its entries matched the pattern
+  std::vector<std::exception_ptr> errors_;  ///< per force: what its Jacobians threw
+  uint64_t pattern_builds_ = 0;             ///< pattern() calls (stats)
   std::vector<int64_t> diag_block_, tblock_;
   std::vector<double> root_diag_;  ///< |a_ii|^1/2 (is_symmetric)
   int64_t np_ = 0;                 ///< particles (block rows) of this step

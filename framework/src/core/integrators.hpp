@@ -65,7 +65,8 @@ std::unique_ptr<Integrator> make_rk4();
 /// Settings of implicit Euler's linear solve (tests force a fallback with them).
 struct ImplicitEulerOptions {
   long cg_max_iterations = 0;  ///< 0: max(100, 4 x dofs)
-  /// Jacobian entries from which a concurrent force scatters into its own copy of A on a
+  /// Jacobian items (a 2x2 block or a single entry counts one) from which a concurrent force
+  /// scatters into its own copy of A on a
   /// thread of its own (the first such force excepted); tests set it high to compare.
   std::size_t own_group_entries = 16384;
 };

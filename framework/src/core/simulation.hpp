@@ -133,8 +133,9 @@ class Simulation {
   /// one evaluation.
   void jacobians(const State& s, const pinsim_triplet_sink& sx, const pinsim_triplet_sink& sv);
   /// Force k's entries alone (forces().size() of them), as jacobians() hands them over; not
-  /// counted (the caller calls count_jacobian_evaluation() once for all). Two forces may be
-  /// asked at once from two threads if both are concurrent() (ForceInstance).
+  /// counted (the caller calls count_jacobian_evaluation() once for all). May be called for
+  /// two forces at once from two threads, provided no two instances of one plugin without
+  /// PINSIM_CAP_CONCURRENT (ForceInstance::concurrent) are called at once.
   void jacobians_of(std::size_t k, const State& s, const pinsim_triplet_sink& sx,
                     const pinsim_triplet_sink& sv);
   void count_jacobian_evaluation() { ++jacobian_evals_; }

@@ -154,15 +154,20 @@ void check_recording(const json& rec, const std::string& file, bool scene_given)
   }
 }
 
-void PinballGame::rerun(const json& rec, const std::string& file) {
+void PinballGame::rerun(const json& rec, const std::string& file, double max_seconds) {
   check_recording(rec, file, true);
   const Loc root{file, ""};
   const uint64_t n = rec.at("steps").get<uint64_t>();
   const double seconds = static_cast<double>(n) * scene_.dt;
-  if (!(seconds <= kMaxRerunSeconds))
+  if (!(seconds <= max_seconds))
     (root / "steps")
         .fail(std::to_string(n) + " steps of dt = " + num(scene_.dt) + " s are " + num(seconds) +
-              " s of play, more than the limit of " + num(kMaxRerunSeconds) + " s (24 hours)");
+              " s of play, more than the limit of " + num(max_seconds) + " s" +
+              (max_seconds == 86400.0 ? " (24 hours)" : ""));
+  if (n > kMaxRerunSteps)
+    (root / "steps")
+        .fail(std::to_string(n) + " steps are more than the limit of " +
+              std::to_string(kMaxRerunSteps) + " steps");
   // Each input one of the table's, in step order, within the recording's steps: anything
   // else would be skipped or applied late by the rerun, silently.
   const json& in = rec.at("inputs");

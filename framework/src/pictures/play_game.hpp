@@ -20,6 +20,8 @@ namespace pinsim {
 /// The most game time a recording may rerun, s: a day of play (4.3e8 steps of the table's
 /// 0.2 ms, about 2.5 h to rerun here); an edited "steps" of 1e18 would otherwise run for ever.
 inline constexpr double kMaxRerunSeconds = 86400.0;
+/// And at most this many steps whatever the scene's dt (a day of the table's 0.2 ms steps).
+inline constexpr uint64_t kMaxRerunSteps = 432000000;
 
 /// "press" or "release" in entry's "action" at `at`; InputError otherwise.
 bool read_action(const nlohmann::json& entry, const Loc& at);
@@ -84,9 +86,12 @@ class PinballGame {
   /// First refuses (InputError naming `file` and the JSON path) what a rerun could not use
   /// or would get silently wrong: a malformed recording (check_recording), an input the
   /// table lacks, inputs out of step order or after the last step, and more than
-  /// kMaxRerunSeconds of play (an edited step count would run for ever). `pinsim play
+  /// max_seconds of play or kMaxRerunSteps steps (an edited step count would run for ever).
+  /// `pinsim play
   /// --rerun` and the web page's rerun both come here.
-  void rerun(const nlohmann::json& recording, const std::string& file = "recording");
+  /// `max_seconds`: the web page passes less than a day (its tab would freeze for hours).
+  void rerun(const nlohmann::json& recording, const std::string& file = "recording",
+             double max_seconds = kMaxRerunSeconds);
 
  private:
   void serve_ball();

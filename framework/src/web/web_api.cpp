@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "core/json_read.hpp"
 #include "core/plugin_loader.hpp"
 #include "core/scene.hpp"
 #include "core/static_plugins.hpp"
@@ -19,6 +20,10 @@
 namespace {
 using nlohmann::json;
 using pinsim::PinballGame;
+
+/// The most play a page reruns, s: an hour (1.8e7 steps of the table's 0.2 ms, minutes of
+/// the tab's time); a longer recording is refused, not run for hours.
+constexpr double kWebRerunSeconds = 3600.0;
 
 struct Engine {
   std::unique_ptr<pinsim::Scene> scene;
@@ -162,11 +167,13 @@ EMSCRIPTEN_KEEPALIVE const char* pinsim_web_recording() {
 /// A new game, then a recording's inputs rerun (as `pinsim play --rerun`).
 EMSCRIPTEN_KEEPALIVE int pinsim_web_rerun(const char* recording) {
   return guarded([&] {
-    const json rec = json::parse(recording);
+    // parse_json_text: nesting limited while parsing (a deep file would overflow the wasm
+    // stack in anything recursive), duplicate keys refused
+    const json rec = pinsim::parse_json_text(recording, "recording");
     Engine& e = engine();
     if (!e.scene) throw std::runtime_error("no scene loaded");
     e.game = std::make_unique<PinballGame>(*e.scene, *e.loader);
-    e.game->rerun(rec);
+    e.game->rerun(rec, "recording", kWebRerunSeconds);
   });
 }
 
