@@ -639,10 +639,13 @@ class ImplicitEuler : public Integrator {
     auto kept = [&](Eigen::Index r, Eigen::Index c) { return m_[r] > 0.0 && m_[c] > 0.0; };
     const int64_t np = n / 2;
     std::vector<uint64_t> keys;  // blocks (i << 32 | j)
+    // force k's Jacobian items (2x2 blocks and single entries, both matrices)
+    auto items = [&](std::size_t k) {
+      return ex_[k].blocks.size() + ev_[k].blocks.size() + ex_[k].single.size() +
+             ev_[k].single.size();
+    };
     std::size_t total = static_cast<std::size_t>(np);
-    for (std::size_t k = 0; k < ex_.size(); ++k)
-      total +=
-          ex_[k].blocks.size() + ev_[k].blocks.size() + ex_[k].single.size() + ev_[k].single.size();
+    for (std::size_t k = 0; k < ex_.size(); ++k) total += items(k);
     keys.reserve(total);
     std::vector<const JacobianEntries*> all;
     for (std::size_t k = 0; k < ex_.size(); ++k) all.insert(all.end(), {&ex_[k], &ev_[k]});
@@ -695,9 +698,7 @@ class ImplicitEuler : public Integrator {
     for (std::size_t k = 0; k < ex_.size(); ++k) {
       slots(ex_[k], px_[k]);
       slots(ev_[k], pv_[k]);
-      const std::size_t entries =
-          ex_[k].blocks.size() + ev_[k].blocks.size() + ex_[k].single.size() + ev_[k].single.size();
-      if (!sim.forces()[k]->concurrent() || entries < options_.own_group_entries) continue;
+      if (!sim.forces()[k]->concurrent() || items(k) < options_.own_group_entries) continue;
       if (first) {
         first = false;
         continue;
@@ -735,7 +736,7 @@ class ImplicitEuler : public Integrator {
         sum[2] += m[i] * (vi * vi + dv[i] * dv[i]);
         const double e = ri * ri / m[i];
         sum[0] += e;
-        if (at < 0 || (!std::isnan(worst) && !(e <= worst))) {  // the first NaN is the worst
+        if (replaces(e, worst, at < 0)) {
           worst = e;
           at = i;
         }
@@ -753,8 +754,7 @@ class ImplicitEuler : public Integrator {
     double worst = 0.0;
     Eigen::Index at = -1;
     for (std::size_t c = 0; c < chunks; ++c)
-      if (worst_[2 * c + 1] >= 0.0 &&
-          (at < 0 || (!std::isnan(worst) && !(worst_[2 * c] <= worst)))) {
+      if (worst_[2 * c + 1] >= 0.0 && replaces(worst_[2 * c], worst, at < 0)) {
         worst = worst_[2 * c];
         at = static_cast<Eigen::Index>(worst_[2 * c + 1]);
       }
@@ -767,6 +767,12 @@ class ImplicitEuler : public Integrator {
                     "precision){}",
                     std::sqrt(r2), 1e-3 * std::sqrt(v2), stiffness_text(sim, s, h)),
         sim.step_index() + 1, s.t, at / 2, blame(sim, s, h));
+  }
+
+  /// Whether e takes the worst dof's place (none yet: `none`): larger, and the first NaN
+  /// stays the worst.
+  static bool replaces(double e, double worst, bool none) {
+    return none || (!std::isnan(worst) && !(e <= worst));
   }
 
   /// The particle whose dofs ask for the largest velocity change |b_i| / m_i (a NaN first).
