@@ -8,7 +8,7 @@ packages=(cmake g++ make pkg-config libeigen3-dev libboost-dev libspdlog-dev cat
           nlohmann-json3-dev libcli11-dev libbox2d-dev libtbb-dev
           libcairo2-dev libsdl2-dev chromium xvfb xauth gnuplot-nox python3-jsonschema
           slurm-wlm munge bubblewrap clang libclang-rt-14-dev firefox-esr emscripten
-          libhdf5-dev hdf5-tools python3-h5py)
+          libhdf5-dev hdf5-tools python3-h5py liblbfgspp-dev)
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

@@ -1,0 +1,153 @@
+// Adjoint steps of the explicit integrators: symplectic Euler and velocity Verlet.
+#include "gradients/step_adjoint.hpp"
+
+#include <algorithm>
+
+namespace pinsim::grad {
+namespace {
+
+/// w = c M^-1 g per particle (0 for pinned particles, inv_mass 0).
+Eigen::Matrix2Xd scaled_by_inv_mass(const State& s, const Eigen::Matrix2Xd& g, double c) {
+  Eigen::Matrix2Xd w(2, g.cols());
+  for (Eigen::Index i = 0; i < g.cols(); ++i) w.col(i) = (c * s.inv_mass[i]) * g.col(i);
+  return w;
+}
+
+/// The adjoint of a kick v' = v + w (w = c M^-1 f(s)): with wbar = c M^-1 vbar', adds
+/// (df/dx)^T wbar to gx, (df/dv)^T wbar to gv and (df/dtheta)^T wbar to gp at s.
+void kick_adjoint(ForceModel& forces, const State& s, const Eigen::Matrix2Xd& vbar, double c,
+                  Eigen::Matrix2Xd& gx, Eigen::Matrix2Xd& gv, Eigen::VectorXd& gp) {
+  const Eigen::Matrix2Xd w = scaled_by_inv_mass(s, vbar, c);
+  forces.vjp(s, w, gx, gv);
+  forces.param_vjp(s, w, gp);
+}
+
+/// A state with s's masses and radii at (x, v).
+State at(const State& s, const Eigen::Matrix2Xd& x, const Eigen::Matrix2Xd& v) {
+  State out = s;
+  out.x = x;
+  out.v = v;
+  return out;
+}
+
+}  // namespace
+
+bool scheme_for(const std::string& integrator, Scheme& out, std::string& why) {
+  if (integrator == "symplectic_euler") {
+    out = Scheme::kSymplecticEuler;
+  } else if (integrator == "velocity_verlet") {
+    out = Scheme::kVelocityVerlet;
+  } else if (integrator == "implicit_euler") {
+    out = Scheme::kImplicitEuler;
+  } else {
+    why = "integrator '" + integrator +
+          "' has no adjoint step (differentiable: symplectic_euler, velocity_verlet, "
+          "implicit_euler)";
+    return false;
+  }
+  return true;
+}
+
+void Adjoint::reset(Eigen::Index n, Eigen::Index p) {
+  gx.setZero(2, n);
+  gv.setZero(2, n);
+  gp.setZero(p);
+  material = MaterialGrad{};
+}
+
+void adjoint_symplectic_euler(ForceModel& forces, const StepTape& tape, double h, Adjoint& a) {
+  // (x1, v1) = drift(x0, v'), v' = v0 + h M^-1 f(x0, v0)
+  drift_adjoint(tape.drift, a.gx, a.gv, nullptr, a.material);
+  const Eigen::Matrix2Xd vbar = a.gv;  // of v'; v0 passes through the kick unchanged
+  kick_adjoint(forces, tape.start, vbar, h, a.gx, a.gv, a.gp);
+}
+
+// Forward (integrator_verlet.cpp, correct_impacts in impact_correction.cpp):
+//   f0 = f(x0, v0), vh = v0 + h/2 M^-1 f0, (x1, vd) = drift(x0, vh),
+//   vc = vd - sum over emitted impacts k of particle i: c_k (tau_k - h/2) (a0_i.n_k) n_k,
+//        a0 = M^-1 f0, c_k = clamp((vn_after - vn_before) / -vn_before, 1, 2)
+//           = clamp(1 + e + kick / -vn_before, 1, 2),
+//   f1 = f(x1, vc); with the predictor vp = vc + h/2 M^-1 f1 and f2 = f(x1, vp), else f2 = f1;
+//   v1 = vc + h/2 M^-1 f2.
+void adjoint_velocity_verlet(ForceModel& forces, const StepTape& tape, double h, Adjoint& a) {
+  const State& s0 = tape.start;
+  const State s1 = at(s0, tape.x1, tape.vc);
+  Eigen::Matrix2Xd gx1 = a.gx;
+  Eigen::Matrix2Xd vc_bar = a.gv;  // v1 = vc + ...
+  if (tape.predicted) {
+    // v1 = vc + h/2 M^-1 f(x1, vp), vp = vc + h/2 M^-1 f(x1, vc)
+    const State sp = at(s0, tape.x1, tape.vp);
+    Eigen::Matrix2Xd vp_bar = Eigen::Matrix2Xd::Zero(2, s0.x.cols());
+    kick_adjoint(forces, sp, a.gv, 0.5 * h, gx1, vp_bar, a.gp);
+    vc_bar += vp_bar;
+    kick_adjoint(forces, s1, vp_bar, 0.5 * h, gx1, vc_bar, a.gp);
+  } else {
+    kick_adjoint(forces, s1, a.gv, 0.5 * h, gx1, vc_bar, a.gp);
+  }
+  // the impact correction: vd passes, the impacts' own values and a0 get adjoints
+  const DriftTape& d = tape.drift;
+  std::vector<ImpactSeed> seeds;
+  Eigen::Matrix2Xd a0_bar = Eigen::Matrix2Xd::Zero(2, s0.x.cols());
+  bool any = false;
+  for (const Impact& m : d.impacts) any = any || m.emitted;
+  if (any) {
+    Eigen::Matrix2Xd f0;
+    forces.force(s0, f0);
+    seeds.assign(d.impacts.size(), ImpactSeed{});
+    for (std::size_t k = 0; k < d.impacts.size(); ++k) {
+      const Impact& m = d.impacts[k];
+      const auto i = static_cast<Eigen::Index>(m.particle);
+      if (!m.emitted || m.obstacle < 0 || !(s0.inv_mass[i] > 0.0)) continue;
+      const double vn_b = (m.v_before - m.u).dot(m.n);
+      const double vn_a = (m.v_after - m.u).dot(m.n);
+      if (!(vn_b < 0.0)) continue;
+      const double ratio = (vn_a - vn_b) / -vn_b;
+      const double c = std::clamp(ratio, 1.0, 2.0);
+      const Vec2 a0 = s0.inv_mass[i] * f0.col(i);
+      const double lever = m.tau - 0.5 * h;
+      const double an = a0.dot(m.n);
+      // vc_i -= c lever an n
+      const Vec2 vb = vc_bar.col(i);
+      const double cb = -m.n.dot(vb);  // adjoint of the scalar c lever an
+      ImpactSeed& sd = seeds[k];
+      sd.n += -c * lever * an * vb + cb * c * lever * a0;
+      sd.tau += cb * c * an;
+      a0_bar.col(i) += cb * c * lever * m.n;
+      if (ratio >= 1.0 && ratio <= 2.0) {  // c = 1 + e + kick / -vn_b, unclamped
+        const double c_bar = cb * lever * an;
+        const double de = m.resting ? 0.0 : c_bar;
+        const double dk = m.resting ? 0.0 : c_bar / -vn_b;
+        a.material.add(m.obstacle, de, 0.0, dk);
+        if (!m.resting) sd.vn += c_bar * m.kick / (vn_b * vn_b);
+      }
+    }
+  }
+  // the drift, with the correction's seeds on its impacts
+  Eigen::Matrix2Xd gv_in = vc_bar;
+  a.gx = gx1;
+  drift_adjoint(d, a.gx, gv_in, any ? &seeds : nullptr, a.material);
+  // vh = v0 + h/2 M^-1 f0; a0 = M^-1 f0
+  a.gv = gv_in;
+  const Eigen::Matrix2Xd w =
+      scaled_by_inv_mass(s0, gv_in, 0.5 * h) + scaled_by_inv_mass(s0, a0_bar, 1.0);
+  forces.vjp(s0, w, a.gx, a.gv);
+  forces.param_vjp(s0, w, a.gp);
+}
+
+void adjoint_step(Scheme scheme, ForceModel& forces, const StepTape& tape, double h, Adjoint& a,
+                  AdjointStats& stats) {
+  ++stats.steps;
+  switch (scheme) {
+    case Scheme::kSymplecticEuler:
+      adjoint_symplectic_euler(forces, tape, h, a);
+      return;
+    case Scheme::kVelocityVerlet:
+      adjoint_velocity_verlet(forces, tape, h, a);
+      return;
+    case Scheme::kImplicitEuler:
+      adjoint_implicit_euler(forces, tape, h, a, stats);
+      return;
+  }
+}
+
+}  // namespace pinsim::grad

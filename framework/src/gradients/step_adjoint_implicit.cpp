@@ -1,0 +1,147 @@
+// The adjoint step of linearized backward Euler: the transposed solve of its own system.
+#include <Eigen/IterativeLinearSolvers>
+#include <Eigen/SparseLU>
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+#include "gradients/step_adjoint.hpp"
+
+namespace pinsim::grad {
+namespace {
+
+using Sparse = Eigen::SparseMatrix<double>;
+
+/// A = M - h D - h^2 K with the pinned dofs' rows and columns replaced by the identity, as
+/// implicit_euler builds it.
+Sparse system_matrix(const State& s, const Sparse& K, const Sparse& D, double h) {
+  const Eigen::Index n = 2 * static_cast<Eigen::Index>(s.size());
+  auto free = [&](Eigen::Index dof) { return s.inv_mass[dof / 2] > 0.0; };
+  std::vector<Eigen::Triplet<double>> t;
+  t.reserve(static_cast<std::size_t>(K.nonZeros() + D.nonZeros() + n));
+  for (Eigen::Index i = 0; i < n; ++i)
+    t.emplace_back(i, i, free(i) ? 1.0 / s.inv_mass[i / 2] : 1.0);
+  auto add = [&](const Sparse& m, double c) {
+    for (Eigen::Index k = 0; k < m.outerSize(); ++k)
+      for (Sparse::InnerIterator it(m, k); it; ++it)
+        if (free(it.row()) && free(it.col())) t.emplace_back(it.row(), it.col(), c * it.value());
+  };
+  add(D, -h);
+  add(K, -h * h);
+  Sparse a(n, n);
+  a.setFromTriplets(t.begin(), t.end());
+  return a;
+}
+
+/// Solves A^T mu = rhs to a relative residual of 1e-13: conjugate gradients when A is
+/// symmetric, BiCGSTAB otherwise (Jacobi-preconditioned, as the forward's solves), sparse LU
+/// if they fail. Throws std::runtime_error if that fails too.
+Eigen::VectorXd transposed_solve(const Sparse& a, const Eigen::VectorXd& rhs, AdjointStats& st) {
+  ++st.solves;
+  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(rhs.size());
+  const double bn = rhs.norm();
+  if (bn == 0.0) return zero;
+  const Sparse at = a.transpose();
+  const double asym = (Sparse(at - a)).norm();
+  const bool symmetric = asym <= 1e-14 * a.norm();
+  Eigen::VectorXd mu;
+  if (symmetric) {
+    Eigen::ConjugateGradient<Sparse, Eigen::Lower | Eigen::Upper> cg;
+    cg.setTolerance(1e-13);
+    cg.setMaxIterations(std::max<Eigen::Index>(100, 4 * rhs.size()));
+    cg.compute(at);
+    mu = cg.solve(rhs);
+    st.solve_iterations += static_cast<uint64_t>(cg.iterations());
+  } else {
+    Eigen::BiCGSTAB<Sparse> bi;
+    bi.setTolerance(1e-13);
+    bi.setMaxIterations(std::max<Eigen::Index>(100, 4 * rhs.size()));
+    bi.compute(at);
+    mu = bi.solve(rhs);
+    st.solve_iterations += static_cast<uint64_t>(bi.iterations());
+  }
+  double res = (at * mu - rhs).norm() / bn;
+  if (!(res <= 1e-12)) {
+    ++st.lu_fallbacks;
+    Eigen::SparseLU<Sparse> lu;
+    lu.compute(at);
+    if (lu.info() != Eigen::Success)
+      throw std::runtime_error("implicit_euler adjoint: the transposed system is singular");
+    mu = lu.solve(rhs);
+    res = (at * mu - rhs).norm() / bn;
+    if (!(res <= 1e-10))
+      throw std::runtime_error(
+          "implicit_euler adjoint: the transposed solve left relative residual " +
+          std::to_string(res));
+  }
+  st.worst_residual = std::max(st.worst_residual, res);
+  return mu;
+}
+
+Eigen::Map<const Eigen::VectorXd> flat(const Eigen::Matrix2Xd& m) { return {m.data(), m.size()}; }
+
+}  // namespace
+
+// Forward (integrator_implicit_euler.cpp):
+//   A dv = b,  A = M - h D - h^2 K,  b = h (f + h K v0)  (pinned rows 0),  v' = v0 + dv,
+//   then (x1, v1) = drift(x0, v').
+// With mu = A^-T (adjoint of dv), the first-order terms are
+//   xbar += h K^T mu,  vbar += h D^T mu + h^2 K^T mu,  thetabar += h (df/dtheta)^T mu,
+// and the second-order ones, from K and D changing with the state and the parameters in
+//   mu^T dA dv and mu^T db:  phi(x, v, theta) = mu^T (h^2 K v' + h D dv),
+//   xbar += d phi / dx = d/deps [K(x + eps a, v + eps c)^T mu]  (a = h^2 v', c = h dv),
+//   vbar += d phi / dv = d/deps [D(x + eps a, v + eps c)^T mu],
+//   thetabar += d phi / dtheta = d/deps [(df/dtheta)(x + eps a, v + eps c)^T mu],
+// each a directional derivative of the Jacobian products along one direction, here by
+// central differences with eps scaled so the shift is 1e-5 of the state's size (truncation
+// O(eps^2), rounding O(1e-16 / 1e-5) relative; zero for forces linear in the state).
+void adjoint_implicit_euler(ForceModel& forces, const StepTape& tape, double h, Adjoint& a,
+                            AdjointStats& stats) {
+  const State& s0 = tape.start;
+  const Eigen::Index np = s0.x.cols();
+  const Eigen::Matrix2Xd& vmid = tape.drift.v_in;
+  const Eigen::Matrix2Xd dv = vmid - s0.v;
+  drift_adjoint(tape.drift, a.gx, a.gv, nullptr, a.material);
+  // v' = v0 + dv: v0 gets a.gv as it is; dv's adjoint on free dofs only
+  Eigen::Matrix2Xd lam = a.gv;
+  for (Eigen::Index i = 0; i < np; ++i)
+    if (!(s0.inv_mass[i] > 0.0)) lam.col(i).setZero();
+  Sparse K, D;
+  forces.jacobians(s0, K, D);
+  const Sparse A = system_matrix(s0, K, D, h);
+  const Eigen::VectorXd mu_flat = transposed_solve(A, flat(lam), stats);
+  const Eigen::Matrix2Xd mu = Eigen::Map<const Eigen::Matrix2Xd>(mu_flat.data(), 2, np);
+  // first order: b = h f + h^2 K v0
+  Eigen::Matrix2Xd kx = Eigen::Matrix2Xd::Zero(2, np), dx = Eigen::Matrix2Xd::Zero(2, np);
+  forces.vjp(s0, h * mu, kx, dx);  // kx = h K^T mu, dx = h D^T mu
+  forces.param_vjp(s0, h * mu, a.gp);
+  a.gx += kx;
+  a.gv += dx + h * kx;
+  // second order, along (a, c) = (h^2 v', h dv)
+  const Eigen::Matrix2Xd dir_x = h * h * vmid, dir_v = h * dv;
+  const double sx = dir_x.cwiseAbs().maxCoeff(), sv = dir_v.cwiseAbs().maxCoeff();
+  if (!(sx > 0.0 || sv > 0.0) || mu.isZero(0.0)) return;
+  const double xs = 1.0 + s0.x.cwiseAbs().maxCoeff(), vs = 1.0 + s0.v.cwiseAbs().maxCoeff();
+  double eps = HUGE_VAL;
+  if (sx > 0.0) eps = std::min(eps, 1e-5 * xs / sx);
+  if (sv > 0.0) eps = std::min(eps, 1e-5 * vs / sv);
+  State sp = s0, sm = s0;
+  sp.x += eps * dir_x;
+  sp.v += eps * dir_v;
+  sm.x -= eps * dir_x;
+  sm.v -= eps * dir_v;
+  Eigen::Matrix2Xd gxp = Eigen::Matrix2Xd::Zero(2, np), gvp = gxp, gxm = gxp, gvm = gxp;
+  forces.vjp(sp, mu, gxp, gvp);
+  forces.vjp(sm, mu, gxm, gvm);
+  a.gx += (gxp - gxm) / (2.0 * eps);
+  a.gv += (gvp - gvm) / (2.0 * eps);
+  if (a.gp.size() > 0) {
+    Eigen::VectorXd pp = Eigen::VectorXd::Zero(a.gp.size()), pm = pp;
+    forces.param_vjp(sp, mu, pp);
+    forces.param_vjp(sm, mu, pm);
+    a.gp += (pp - pm) / (2.0 * eps);
+  }
+}
+
+}  // namespace pinsim::grad
