@@ -8,6 +8,7 @@
 #include <system_error>
 
 #include "core/elf_check.hpp"
+#include "core/plugin_table_check.hpp"
 #include "core/static_plugins.hpp"
 
 namespace fs = std::filesystem;
@@ -64,7 +65,9 @@ const pinsim_plugin* checked_table(const pinsim_plugin* table, const std::string
     throw LoadError(where + ": force plugin without add_force");
   if (table->kind == PINSIM_KIND_BACKEND && table->backend.advance == nullptr)
     throw LoadError(where + ": backend plugin without advance");
-
+  // Function pointers against capability flags, counts against their arrays.
+  if (const std::string bad = plugin_table_problems(*table); !bad.empty())
+    throw LoadError(where + ": inconsistent plugin table of '" + table->name + "': " + bad);
   return table;
 }
 }  // namespace

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "core/format.hpp"
+#include "core/plugin_table_check.hpp"
 
 namespace pinsim::grading {
 namespace {
@@ -520,6 +521,10 @@ std::shared_ptr<const LoadedPlugin> RemoteWorker::open(const std::string& name, 
       p.backend.advance = r_advance;
       p.backend.distance = has_dist ? r_distance : nullptr;
     }
+    // The worker checked its library's table; a forged description is checked here, before
+    // any check can call through a pointer the flags promise.
+    if (const std::string bad = plugin_table_problems(p); !bad.empty())
+      throw PluginCallError("plugin '" + name + "' has an inconsistent table: " + bad);
     auto loaded = std::make_shared<LoadedPlugin>();
     loaded->table = &t->table;
     loaded->path = "submission/" + file;

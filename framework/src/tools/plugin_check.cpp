@@ -16,6 +16,7 @@
 
 #include "core/format.hpp"
 #include "core/param_validation.hpp"
+#include "core/plugin_table_check.hpp"
 #include "tools/check_layout.hpp"
 
 namespace pinsim {
@@ -638,6 +639,16 @@ CheckReport check_force_plugin(const LoadedPlugin& plugin, const CheckOptions& o
   if (opt.scene != nullptr && opt.force_index >= opt.scene->forces.size())
     throw InputError(opt.scene->label + ": --force-index " + std::to_string(opt.force_index) +
                      ": the scene has " + std::to_string(opt.scene->forces.size()) + " force(s)");
+  // A table whose flags promise a function it lacks would be called through NULL: its
+  // own failure, before anything is called (tables loaded from a file were checked already).
+  if (const std::string bad = plugin_table_problems(*plugin.table); !bad.empty()) {
+    CheckReport rep;
+    rep.plugin = plugin.name();
+    rep.path = plugin.path.string();
+    rep.checks.push_back({"table", "function pointers match the capability flags",
+                          CheckStatus::Fail, std::numeric_limits<double>::infinity(), 0.0, bad});
+    return rep;
+  }
   TrapsOff traps;
   Checker c(plugin, opt);
   return c.run();

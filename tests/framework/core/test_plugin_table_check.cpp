@@ -1,0 +1,106 @@
+// plugin_table_problems: every function pointer against its capability flag, and the counts
+// and strings of a table, on tables written by hand (what a plugin that bypasses the SDK, or
+// sets a flag in info() by hand, exports).
+#include <catch2/catch.hpp>
+#include <cmath>
+
+#include "core/plugin_table_check.hpp"
+
+using Catch::Matchers::Contains;
+
+namespace {
+
+int add_force(void*, const pinsim_state_view*, double*, pinsim_error*) { return 0; }
+int energy(void*, const pinsim_state_view*, double*, pinsim_error*) { return 0; }
+int jacobians(void*, const pinsim_state_view*, const pinsim_triplet_sink*,
+              const pinsim_triplet_sink*, pinsim_error*) {
+  return 0;
+}
+int advance(void*, pinsim_state_mut*, double, const pinsim_event_sink*, pinsim_error*) { return 0; }
+int distance(void*, const double*, double, double*, int64_t*, pinsim_error*) { return 0; }
+int input(void*, const char*, int, double, pinsim_error*) { return 0; }
+
+pinsim_plugin force_table() {
+  pinsim_plugin t{};
+  t.abi_version = PINSIM_ABI_VERSION;
+  t.struct_size = sizeof(pinsim_plugin);
+  t.kind = PINSIM_KIND_FORCE;
+  t.arity = 2;
+  t.name = "spring";
+  t.version = "1";
+  t.doc = "";
+  t.force.add_force = add_force;
+  return t;
+}
+
+}  // namespace
+
+TEST_CASE("table check: consistent force and backend tables pass") {
+  pinsim_plugin t = force_table();
+  CHECK(pinsim::plugin_table_problems(t).empty());
+  t.capabilities = PINSIM_CAP_ENERGY | PINSIM_CAP_DFDX | PINSIM_CAP_INTERNAL;
+  t.force.energy = energy;
+  t.force.add_jacobians = jacobians;
+  CHECK(pinsim::plugin_table_problems(t).empty());
+  pinsim_plugin b = force_table();
+  b.kind = PINSIM_KIND_BACKEND;
+  b.force.add_force = nullptr;
+  b.backend.advance = advance;
+  b.capabilities = PINSIM_CAP_DISTANCE | PINSIM_CAP_PARTICLE_CONTACT;
+  b.backend.distance = distance;
+  CHECK(pinsim::plugin_table_problems(b).empty());
+}
+
+TEST_CASE("table check: a flag without its function, or a function without its flag") {
+  pinsim_plugin t = force_table();
+  t.capabilities = PINSIM_CAP_ENERGY;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("declares PINSIM_CAP_ENERGY but its energy function is NULL"));
+  t.capabilities = PINSIM_CAP_DFDV;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("declares PINSIM_CAP_DFDV but its add_jacobians function is NULL"));
+  t.capabilities = 0;
+  t.force.energy = energy;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("provides the energy function but does not declare PINSIM_CAP_ENERGY"));
+  t.force.energy = nullptr;
+  t.force.add_jacobians = jacobians;
+  CHECK_THAT(pinsim::plugin_table_problems(t), Contains("declares neither PINSIM_CAP_DFDX"));
+  pinsim_plugin b = force_table();
+  b.kind = PINSIM_KIND_BACKEND;
+  b.backend.advance = advance;
+  b.capabilities = PINSIM_CAP_INPUTS | PINSIM_CAP_OUTLINES;
+  b.backend.input = input;
+  const std::string bad = pinsim::plugin_table_problems(b);
+  CHECK_THAT(bad, Contains("declares PINSIM_CAP_OUTLINES but its outline function is NULL"));
+  CHECK(bad.find("INPUTS") == std::string::npos);
+}
+
+TEST_CASE("table check: counts, strings and parameters") {
+  pinsim_plugin t = force_table();
+  t.version = nullptr;
+  t.n_params = 3;
+  CHECK_THAT(pinsim::plugin_table_problems(t), Contains("its version string is NULL"));
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("declares 3 parameters but its params array is NULL"));
+  t = force_table();
+  t.n_params = 1u << 30;
+  CHECK_THAT(pinsim::plugin_table_problems(t), Contains("declares 1073741824 parameters"));
+  pinsim_param p[3] = {};
+  p[0] = {"k", PINSIM_PARAM_REAL, 0, {1, 0}, nullptr, nullptr, 0, HUGE_VAL, "N/m", "stiffness"};
+  p[1] = p[0];                                                                // the same name twice
+  p[2] = {nullptr, 99, 0, {0, 0}, nullptr, nullptr, 0, 0, nullptr, nullptr};  // nameless
+  t = force_table();
+  t.params = p;
+  t.n_params = 3;
+  const std::string bad = pinsim::plugin_table_problems(t);
+  CHECK_THAT(bad, Contains("parameter 1 'k' is declared twice"));
+  CHECK_THAT(bad, Contains("parameter 2 has no name"));
+  p[2] = {"c", 99, 0, {0, 0}, nullptr, nullptr, 0, 0, nullptr, "x"};
+  const std::string bad2 = pinsim::plugin_table_problems(t);
+  CHECK_THAT(bad2, Contains("parameter 2 'c' has an unknown type 99"));
+  CHECK_THAT(bad2, Contains("parameter 2 'c' has NULL units"));
+  t = force_table();
+  t.arity = 1u << 20;
+  CHECK_THAT(pinsim::plugin_table_problems(t), Contains("declares arity 1048576"));
+}
