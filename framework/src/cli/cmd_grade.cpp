@@ -81,6 +81,10 @@ int grade_one(const GradeArgs& a) {
                                                         : prefix;
   install_stop_handlers();
   const GradeReport r = grade_submission(rubric, opt);
+  if (!r.write_error.empty()) {
+    std::cerr << "pinsim grade: " << r.write_error << "\n";
+    return 2;
+  }
   std::cout << r.results["output"].get<std::string>();
   if (!std::string(r.results["output"].get<std::string>()).empty() &&
       r.results["output"].get<std::string>().back() != '\n')

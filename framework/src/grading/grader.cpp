@@ -51,6 +51,8 @@ class Grading {
       const RubricTest& t = rubric_.tests[i];
       const double t0 = now();
       grading::Verdict v = run_test(t, i, prep);
+      // What the copy of the submission left out is said once, on the first test.
+      if (i == 0 && !prep.copy_notes.empty()) v.output = prep.copy_notes + "\n\n" + v.output;
       add(i, v, now() - t0);
       // Progress on disk after every test: valid files, score 0 until the end.
       write_interim(i + 1);
@@ -201,6 +203,13 @@ GradeReport grade_submission(const Rubric& rubric, const GradeOptions& opt) {
   GradeReport report;
   std::error_code ec;
   fs::create_directories(opt.out, ec);
+  if (ec || !fs::is_directory(opt.out, ec)) {
+    report.refused = true;
+    report.write_error = "cannot make the output folder " + opt.out.string() + ": " +
+                         (ec ? ec.message() : "a file of that name is in the way");
+    report.results = grading::failed_results(report.write_error);
+    return report;
+  }
   try {
     grading::write_results(
         opt.out,
@@ -228,7 +237,7 @@ GradeReport grade_submission(const Rubric& rubric, const GradeOptions& opt) {
   try {
     grading::write_results(opt.out, report.results, rubric.name);
   } catch (const std::exception& e) {
-    spdlog::error("{}", e.what());
+    report.write_error = e.what();
     report.refused = true;
   }
   return report;

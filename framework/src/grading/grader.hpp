@@ -28,6 +28,8 @@ struct GradeReport {
   /// A stop signal (SIGINT, SIGTERM, SIGHUP, SIGQUIT) ended grading after the current test:
   /// results.json lists the tests done, score 0, and says so. `pinsim grade` exits 128 + it.
   int stopped_by = 0;
+  /// Why results.json could not be written ("" when it was): `pinsim grade` then exits 2.
+  std::string write_error;
 };
 
 /// Grades one submission. Never throws and never fails because of what the submission does;

@@ -9,6 +9,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "grading/submission_copy.hpp"
+
 namespace fs = std::filesystem;
 
 namespace pinsim::grading {
@@ -19,55 +21,6 @@ constexpr std::uintmax_t kMaxSourceBytes = 256ull << 20;  // a source submission
 constexpr std::size_t kMaxSourceFiles = 20000;
 constexpr std::size_t kLogHead = 24 << 10, kLogTail = 24 << 10;  // of a build's output
 
-/// Copies a regular file without following symlinks; false if it is not one, or too large.
-bool copy_regular(const fs::path& from, const fs::path& to, std::uintmax_t max) {
-  const int in = ::open(from.c_str(), O_RDONLY | O_NOFOLLOW | O_CLOEXEC);
-  if (in < 0) return false;
-  struct stat st {};
-  if (::fstat(in, &st) != 0 || !S_ISREG(st.st_mode) ||
-      static_cast<std::uintmax_t>(st.st_size) > max) {
-    ::close(in);
-    return false;
-  }
-  const int out = ::open(to.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  bool ok = out >= 0;
-  char buf[1 << 16];
-  ssize_t n;
-  while (ok && (n = ::read(in, buf, sizeof buf)) > 0)
-    ok = ::write(out, buf, static_cast<std::size_t>(n)) == n;
-  ::close(in);
-  if (out >= 0) ok = ::close(out) == 0 && ok;
-  return ok;
-}
-
-/// Copies a source tree: folders, regular files and symlinks (as links, which resolve inside
-/// the sandbox's view), bounded in size and count. Returns "" or what was wrong.
-std::string copy_tree(const fs::path& from, const fs::path& to) {
-  std::error_code ec;
-  std::uintmax_t bytes = 0;
-  std::size_t files = 0;
-  fs::create_directories(to, ec);
-  for (auto it = fs::recursive_directory_iterator(
-           from, fs::directory_options::skip_permission_denied, ec);
-       !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
-    const fs::path rel = fs::relative(it->path(), from, ec);
-    const fs::path dst = to / rel;
-    const auto st = it->symlink_status(ec);
-    if (++files > kMaxSourceFiles)
-      return "the submission has more than " + std::to_string(kMaxSourceFiles) + " files";
-    if (fs::is_symlink(st)) {
-      fs::create_symlink(fs::read_symlink(it->path(), ec), dst, ec);
-    } else if (fs::is_directory(st)) {
-      fs::create_directories(dst, ec);
-    } else if (fs::is_regular_file(st)) {
-      bytes += fs::file_size(it->path(), ec);
-      if (bytes > kMaxSourceBytes) return "the submission is larger than 256 MiB";
-      copy_regular(it->path(), dst, kMaxSourceBytes);
-    }
-  }
-  return ec ? "cannot read the submission: " + ec.message() : "";
-}
-
 /// Every built library under `dir` (not following links) copied into `lib`.
 int collect_libraries(const fs::path& dir, const fs::path& lib) {
   int n = 0;
@@ -76,7 +29,7 @@ int collect_libraries(const fs::path& dir, const fs::path& lib) {
            fs::recursive_directory_iterator(dir, fs::directory_options::skip_permission_denied, ec);
        !ec && it != fs::recursive_directory_iterator(); it.increment(ec)) {
     if (it->path().extension() != ".so" || !fs::is_regular_file(it->symlink_status(ec))) continue;
-    n += copy_regular(it->path(), lib / it->path().filename(), kMaxLibrary);
+    n += copy_regular_file(it->path(), lib / it->path().filename(), kMaxLibrary);
   }
   return n;
 }
@@ -141,12 +94,15 @@ void prepare_submission(const fs::path& submission, const fs::path& sdk_prefix,
     return;
   }
   if (fs::is_regular_file(sub, ec)) {
-    if (!copy_regular(sub, out.libraries / sub.filename(), kMaxLibrary))
+    if (!copy_regular_file(sub, out.libraries / sub.filename(), kMaxLibrary))
       out.problem = "cannot read the submitted library " + sub.filename().string();
   } else if (fs::exists(sub / "CMakeLists.txt", ec)) {
     const fs::path work = out.staging / "work";
     fs::create_directories(work / "build");
-    const std::string copied = copy_tree(sub, work / "src");
+    CopyLog log;
+    const std::string copied =
+        copy_source_tree(sub, work / "src", kMaxSourceBytes, kMaxSourceFiles, log);
+    out.copy_notes = log.text();
     if (!copied.empty()) {
       out.problem = copied;
       return;
@@ -177,9 +133,9 @@ void prepare_submission(const fs::path& submission, const fs::path& sdk_prefix,
       out.build_log =
           "the submission does not compile: the build " + build_fail + "\n" + build.printed;
   } else if (fs::is_directory(sub, ec)) {
-    for (const auto& e : fs::directory_iterator(sub, ec))
-      if (e.path().extension() == ".so")
-        copy_regular(e.path(), out.libraries / e.path().filename(), kMaxLibrary);
+    CopyLog log;
+    copy_libraries(sub, out.libraries, kMaxLibrary, log);
+    out.copy_notes = log.text();
   }
   bool any = false;
   for (const auto& e : fs::directory_iterator(out.libraries, ec))

@@ -15,7 +15,9 @@ struct PreparedSubmission {
   std::filesystem::path libraries;  ///< staging/lib: the plugin libraries the tests load
   std::string problem;    ///< non-empty: nothing can be graded, and why (shown on every test)
   std::string build_log;  ///< the build's output when some target failed to build
-  double seconds = 0.0;   ///< time spent configuring and building
+  /// What the copy of the submission left out and why ("" when nothing): shown once.
+  std::string copy_notes;
+  double seconds = 0.0;  ///< time spent configuring and building
 
   PreparedSubmission() = default;
   PreparedSubmission(const PreparedSubmission&) = delete;
