@@ -9,6 +9,7 @@
 
 #include "core/format.hpp"
 #include "core/stop_signals.hpp"
+#include "grading/private_paths.hpp"
 #include "grading/remote_plugin.hpp"
 #include "grading/results.hpp"
 #include "grading/submission.hpp"
@@ -45,6 +46,7 @@ class Grading {
     start_ = now();
     grading::PreparedSubmission prep;
     grading::prepare_submission(opt_.submission, opt_.sdk_prefix, rubric_, prep);
+    grading::stage_worker_program(opt_.pinsim_exe, prep);
     tests_ = nlohmann::json::array();
     for (std::size_t i = 0; i < rubric_.tests.size(); ++i) {
       if ((stopped_by_ = stop_signal().load()) != 0) break;
@@ -72,6 +74,13 @@ class Grading {
     if (now() - start_ > rubric_.time_budget_seconds)
       return {false, "not run: the submission used up its time budget of " +
                          num(rubric_.time_budget_seconds) + " s"};
+    // One sandbox at a time: another plugin's worker ends before this one is used (the
+    // fallback sandbox sweeps the one uid of every step when a step ends).
+    for (auto& [name, other] : workers_)
+      if (name != t.plugin && other.worker) {
+        other.worker->finish();
+        other.worker.reset();
+      }
     PluginWorker& pw = workers_[t.plugin];
     if (!pw.fatal.empty()) return {false, pw.fatal};
     if (!pw.worker || pw.worker->fault() != WorkerFault::None) {
@@ -108,7 +117,7 @@ class Grading {
     // RLIMIT_CPU counts the worker's whole life; each test has its own wall-clock limit.
     spec.limits.cpu_seconds = rubric_.limits.cpu_seconds * static_cast<double>(tests_of_plugin);
     spec.channel = true;
-    spec.mounts = {{opt_.pinsim_exe.string(), "/grader/pinsim", false},
+    spec.mounts = {{prep.worker_program.string(), "/grader/pinsim", false},
                    {prep.libraries.string(), "/submission/lib", false}};
     grading::Sandboxed proc;
     try {
@@ -172,7 +181,8 @@ class Grading {
                         {"max_score", max_score},
                         {"execution_time", now() - start_},
                         {"visibility", "visible"},
-                        {"tests", tests_}};
+                        {"tests", tests_},
+                        {"extra_data", grading::sandbox_extra_data()}};
     const std::string how =
         stopped_by_ != 0 ? "was interrupted (" + signal_name(stopped_by_) + ")" : "stopped";
     r["output"] = interim
@@ -216,6 +226,9 @@ GradeReport grade_submission(const Rubric& rubric, const GradeOptions& opt) {
         grading::failed_results("Grading started but did not finish. Please tell the "
                                 "course staff."),
         rubric.name);
+    const std::string exposed = grading::sandbox_mode() == grading::SandboxMode::Fallback
+                                    ? grading::exposed_private_paths(rubric, opt.out)
+                                    : "";
     if (!grading::unsafe_no_sandbox() && !grading::sandbox_unavailable().empty()) {
       report.refused = true;
       report.results = grading::failed_results(
@@ -223,7 +236,16 @@ GradeReport grade_submission(const Rubric& rubric, const GradeOptions& opt) {
           grading::sandbox_unavailable() +
           "), so it refuses to grade. Course staff: fix the sandbox, or pass "
           "--unsafe-no-sandbox to grade without isolation.");
+    } else if (!exposed.empty()) {
+      report.refused = true;
+      report.results = grading::failed_results(
+          "The autograder refuses to grade: in its fallback sandbox the submission could "
+          "reach " +
+          exposed +
+          ". Course staff: make these readable only by root (chmod -R go-rwx), see "
+          "docs/grading.md.");
     } else {
+      spdlog::info("sandbox: {}", grading::sandbox_description());
       Grading g(rubric, opt);
       report.results = g.run();
       report.stopped_by = g.stopped_by();

@@ -304,7 +304,7 @@ std::string RemoteWorker::end_test() {
 
 RemoteWorker::~RemoteWorker() {
   if (g_active == this) g_active = nullptr;
-  if (proc_.pid > 0) kill_and_reap(proc_, false);
+  if (proc_.pid > 0 || proc_.fallback) kill_and_reap(proc_, false);
 }
 
 void RemoteWorker::drain_output() {
@@ -351,6 +351,8 @@ void RemoteWorker::fail(WorkerFault fault, const std::string& why, Op op) {
   const StepEnd killed = kill_and_reap(rest, fault == WorkerFault::TimedOut);
   proc_.pid = -1;
   proc_.channel_fd = -1;
+  proc_.fallback = false;  // swept with `rest`
+  proc_.tmp.clear();
   if (fault == WorkerFault::Died) {
     if (!end.exited && end.signal == 0) end = killed;
     const std::string how = end.failure(limits_);
@@ -563,9 +565,10 @@ void RemoteWorker::finish() {
       drain_output();
       ::usleep(2000);
     }
-    if (proc_.pid > 0) kill_and_reap(proc_, false);
   }
   drain_output();
+  // Whether it exited by itself or not: the sandbox ends (the fallback sweeps its uid).
+  kill_and_reap(proc_, false);
   if (proc_.output_fd >= 0) ::close(proc_.output_fd);
   if (proc_.channel_fd >= 0) ::close(proc_.channel_fd);
   proc_.output_fd = proc_.channel_fd = -1;

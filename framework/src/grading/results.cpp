@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "core/format.hpp"
+#include "grading/sandbox.hpp"
 #include "grading/text.hpp"
 
 namespace fs = std::filesystem;
@@ -134,7 +135,14 @@ nlohmann::json failed_results(const std::string& reason) {
           {"execution_time", 0.0},
           {"output", sanitize_text(reason)},
           {"visibility", "visible"},
-          {"tests", nlohmann::json::array()}};
+          {"tests", nlohmann::json::array()},
+          {"extra_data", sandbox_extra_data()}};
+}
+
+nlohmann::json sandbox_extra_data() {
+  return {{"sandbox",
+           {{"mode", sandbox_mode_name(sandbox_mode())},
+            {"detail", sanitize_text(sandbox_description())}}}};
 }
 
 }  // namespace pinsim::grading

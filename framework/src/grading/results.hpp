@@ -26,4 +26,8 @@ void write_results(const std::filesystem::path& dir, const nlohmann::json& resul
 /// A results object with score 0 and `reason` as its output: for the grader's own failures.
 nlohmann::json failed_results(const std::string& reason);
 
+/// results.json's extra_data: {"sandbox": {"mode": "bubblewrap"|"fallback"|"none",
+/// "detail": one line}}, what isolated the submission's code.
+nlohmann::json sandbox_extra_data();
+
 }  // namespace pinsim::grading

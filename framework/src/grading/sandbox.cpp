@@ -3,7 +3,9 @@
 #include <dirent.h>
 #include <fcntl.h>
 #include <poll.h>
+#include <sched.h>
 #include <signal.h>
+#include <sys/prctl.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -16,9 +18,11 @@
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <memory>
 #include <stdexcept>
 
 #include "core/format.hpp"
+#include "grading/sandbox_fallback.hpp"
 #include "grading/text.hpp"
 
 namespace fs = std::filesystem;
@@ -27,6 +31,7 @@ namespace pinsim::grading {
 namespace {
 
 bool g_unsafe = false;
+bool g_probing = false;  // bubblewrap is being tried: steps are made with it
 
 // AddressSanitizer (the asan preset) reserves terabytes of address space for its shadow
 // memory when a program starts, so an address-space limit (RLIMIT_AS) would stop every
@@ -181,8 +186,15 @@ std::vector<std::string> host_args(const SandboxSpec& spec, std::vector<std::str
 }
 
 [[noreturn]] void child(const std::vector<std::string>& args, const SandboxSpec& spec, int out_w,
-                        int chan_w, int info_w, const std::string& cwd) {
-  ::setpgid(0, 0);
+                        int chan_w, int info_w, const std::string& cwd,
+                        const fallback::Confinement* confine) {
+  if (confine != nullptr) {
+    // The fallback: its own session (no terminal, its own process group) and killed with
+    // the grader (bubblewrap's --new-session and --die-with-parent).
+    ::setsid();
+  } else {
+    ::setpgid(0, 0);
+  }
   sigset_t none;
   sigemptyset(&none);
   ::sigprocmask(SIG_SETMASK, &none, nullptr);
@@ -215,7 +227,15 @@ std::vector<std::string> host_args(const SandboxSpec& spec, std::vector<std::str
   std::vector<char*> c;
   for (const auto& s : args) c.push_back(const_cast<char*>(s.c_str()));
   c.push_back(nullptr);
-  ::execv(c[0], c.data());
+  if (confine != nullptr) {
+    if (const char* why = confine->apply(); why[0] != '\0') {
+      [[maybe_unused]] const auto w = ::write(STDERR_FILENO, why, std::strlen(why));
+      ::_exit(126);
+    }
+    ::execve(c[0], c.data(), confine->envp());
+  } else {
+    ::execv(c[0], c.data());
+  }
   const std::string msg = "cannot start " + args[0] + ": " + std::strerror(errno) + "\n";
   [[maybe_unused]] const auto w = ::write(STDERR_FILENO, msg.data(), msg.size());
   ::_exit(127);
@@ -241,6 +261,25 @@ pid_t read_inner_pid(int fd, double timeout) {
   const auto colon = text.find(':', k);
   if (colon == std::string::npos) return -1;
   return static_cast<pid_t>(std::atol(text.c_str() + colon + 1));
+}
+
+/// The fallback's sweep after a step: every process of its uid, its private folder, and
+/// where Landlock did not keep the uid out of them, its files in world-writable folders.
+void sweep_step(Sandboxed& s) {
+  if (!s.fallback) return;
+  s.fallback = false;
+  const uid_t uid = sandbox_ids().first;
+  fallback::kill_uid(uid);
+  if (!s.tmp.empty()) {
+    std::error_code ec;
+    for (auto it = fs::recursive_directory_iterator(
+             s.tmp, fs::directory_options::skip_permission_denied, ec);
+         !ec && it != fs::recursive_directory_iterator(); it.increment(ec))
+      if (fs::is_directory(it->symlink_status(ec))) ::chmod(it->path().c_str(), 0700);
+    fs::remove_all(s.tmp, ec);
+    s.tmp.clear();
+  }
+  if (fallback::support().landlock_abi == 0) fallback::remove_uid_files(uid);
 }
 
 }  // namespace
@@ -280,47 +319,161 @@ std::pair<uid_t, gid_t> sandbox_ids() {
   return {::getuid(), ::getgid()};
 }
 
-const std::string& sandbox_unavailable() {
-  static const std::string why = [] {
-    std::error_code ec;
-    const std::string prog = bwrap_program();
-    if (!fs::exists(prog, ec)) return prog + " not found (install Debian's bubblewrap package)";
-    SandboxSpec spec;
-    spec.limits.wall_seconds = 20;
+namespace {
+
+/// Whether this process may make the namespaces a sandbox needs: "" if so, else the error of
+/// unshare(2) (Docker's default seccomp profile and capabilities refuse them).
+std::string namespaces_refused() {
+  const pid_t pid = ::fork();
+  if (pid < 0) return std::string("fork: ") + std::strerror(errno);
+  if (pid == 0) {
+    int flags = CLONE_NEWNS | CLONE_NEWPID | CLONE_NEWNET | CLONE_NEWIPC | CLONE_NEWUTS;
+    if (::geteuid() != 0) flags |= CLONE_NEWUSER;
+    ::_exit(::unshare(flags) == 0 ? 0 : (errno & 0x7f) + 1);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return "";
+  const int err = WIFEXITED(status) ? WEXITSTATUS(status) - 1 : EPERM;
+  return std::string("unshare of the sandbox's namespaces: ") + std::strerror(err);
+}
+
+struct Status {
+  SandboxMode mode = SandboxMode::None;
+  std::string why_not;  ///< mode None: why no sandbox can be made
+  std::string refused;  ///< mode Fallback: why namespaces cannot be used
+};
+
+/// A trivial step in bubblewrap: "" if it ran.
+std::string bwrap_works() {
+  std::error_code ec;
+  const std::string prog = bwrap_program();
+  if (!fs::exists(prog, ec)) return prog + " not found (install Debian's bubblewrap package)";
+  SandboxSpec spec;
+  spec.limits.wall_seconds = 20;
+  StepOutput r;
+  try {
+    r = run_sandboxed({"/usr/bin/true"}, spec, 2000, 0);
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  if (r.end.exited && r.end.exit_code == 0) return "";
+  return "bubblewrap could not make a sandbox (" + r.end.failure(spec.limits) + "): " + r.printed;
+}
+
+const Status& status() {
+  static const Status st = [] {
+    Status s;
     const bool was = g_unsafe;
     g_unsafe = false;
-    StepOutput r;
-    try {
-      r = run_sandboxed({"/usr/bin/true"}, spec, 2000, 0);
-    } catch (const std::exception& e) {
-      g_unsafe = was;
-      return std::string(e.what());
+    const std::string refused = namespaces_refused();
+    if (refused.empty()) {
+      g_probing = true;
+      s.why_not = bwrap_works();
+      g_probing = false;
+      s.mode = s.why_not.empty() ? SandboxMode::Namespaces : SandboxMode::None;
+    } else if (const auto& f = fallback::support(); f.usable) {
+      s.mode = SandboxMode::Fallback;
+      s.refused = refused;
+      // Orphans of a step (a double fork) come to the grader, which reaps them; and nothing
+      // of an earlier grader that had this uid may still run.
+      ::prctl(PR_SET_CHILD_SUBREAPER, 1);
+      fallback::kill_uid(sandbox_ids().first);
+    } else {
+      s.why_not = "namespaces are refused here (" + refused + ") and the fallback sandbox " +
+                  "cannot be used: " + f.why_not;
     }
     g_unsafe = was;
-    if (r.end.exited && r.end.exit_code == 0) return std::string();
-    return "bubblewrap could not make a sandbox (" + r.end.failure(spec.limits) +
-           "): " + r.printed + " (are user namespaces disabled?)";
+    return s;
   }();
-  return why;
+  return st;
+}
+
+}  // namespace
+
+SandboxMode sandbox_mode() { return g_unsafe ? SandboxMode::Unsafe : status().mode; }
+
+const char* sandbox_mode_name(SandboxMode mode) {
+  switch (mode) {
+    case SandboxMode::Namespaces:
+      return "bubblewrap";
+    case SandboxMode::Fallback:
+      return "fallback";
+    case SandboxMode::Unsafe:
+    case SandboxMode::None:
+      return "none";
+  }
+  return "none";
+}
+
+std::string sandbox_description() {
+  const uid_t uid = sandbox_ids().first;
+  switch (sandbox_mode()) {
+    case SandboxMode::Namespaces:
+      return std::string("bubblewrap: new PID, mount, network, IPC and UTS namespaces; ") +
+             (::geteuid() == 0
+                  ? "unprivileged uid " + std::to_string(uid) + " of its own, no capabilities"
+                  : std::string("a user namespace mapping the grader's uid")) +
+             "; a private /tmp; rlimits; the sandbox's processes killed after each step";
+    case SandboxMode::Fallback:
+      return "fallback, because namespaces are refused here (" + status().refused +
+             "): " + fallback::describe(uid);
+    case SandboxMode::Unsafe:
+      return "none (--unsafe-no-sandbox): rlimits, process groups and the wall-clock limit only";
+    case SandboxMode::None:
+      break;
+  }
+  return "none: " + status().why_not;
+}
+
+const std::string& sandbox_unavailable() {
+  static const std::string empty;
+  return status().mode == SandboxMode::None ? status().why_not : empty;
 }
 
 Sandboxed start_sandboxed(const std::vector<std::string>& argv, const SandboxSpec& spec) {
+  const bool fallback = !g_unsafe && !g_probing && status().mode == SandboxMode::Fallback;
+  const bool bwrap = !g_unsafe && !fallback;
   int out[2], info[2] = {-1, -1}, chan[2] = {-1, -1};
   if (::pipe2(out, O_CLOEXEC) != 0)
     throw std::runtime_error("pipe: " + std::string(std::strerror(errno)));
-  if (!g_unsafe && ::pipe2(info, O_CLOEXEC) != 0)
+  if (bwrap && ::pipe2(info, O_CLOEXEC) != 0)
     throw std::runtime_error("pipe: " + std::string(std::strerror(errno)));
   if (spec.channel && ::socketpair(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0, chan) != 0)
     throw std::runtime_error("socketpair: " + std::string(std::strerror(errno)));
-  std::vector<std::string> args = g_unsafe ? host_args(spec, argv) : bwrap_args(spec, argv);
+  std::vector<std::string> args = bwrap ? bwrap_args(spec, argv) : host_args(spec, argv);
   if (g_unsafe && kAddressSanitizer)  // the memory limit, as bwrap_args sets it in a sandbox
     args.insert(args.begin(), {"/usr/bin/env", "ASAN_OPTIONS=" + asan_options(spec.limits)});
   std::string cwd;
-  if (g_unsafe) cwd = host_args(spec, {spec.cwd})[0];
+  if (!bwrap) cwd = host_args(spec, {spec.cwd})[0];
+  // The fallback's private folder (HOME, TMPDIR, and the working folder where the step
+  // would have had the sandbox's /tmp), owned by the step's uid alone.
+  std::string tmp;
+  std::unique_ptr<fallback::Confinement> confine;
+  if (fallback) {
+    const char* base = std::getenv("TMPDIR");
+    tmp = std::string(base && *base ? base : "/tmp") + "/pinsim-step-XXXXXX";
+    if (::mkdtemp(tmp.data()) == nullptr)
+      throw std::runtime_error("cannot make the step's folder " + tmp + ": " +
+                               std::strerror(errno));
+    const auto [uid, gid] = sandbox_ids();
+    if (::chown(tmp.c_str(), uid, gid) != 0 || ::chmod(tmp.c_str(), 0700) != 0)
+      throw std::runtime_error("cannot give the step's folder " + tmp + " to uid " +
+                               std::to_string(uid) + ": " + std::strerror(errno));
+    if (spec.cwd == "/tmp") cwd = tmp;
+    std::vector<std::string> env;
+    if (kAddressSanitizer) {
+      env.push_back("ASAN_OPTIONS=" + asan_options(spec.limits));
+      if (const char* u = std::getenv("UBSAN_OPTIONS"))
+        env.push_back(std::string("UBSAN_OPTIONS=") + u);
+    }
+    confine = std::make_unique<fallback::Confinement>(spec, uid, gid, tmp, env);
+  }
   std::fflush(nullptr);
   const pid_t pid = ::fork();
   if (pid < 0) throw std::runtime_error("fork: " + std::string(std::strerror(errno)));
-  if (pid == 0) child(args, spec, out[1], chan[1], info[1], g_unsafe ? cwd : std::string());
+  if (pid == 0)
+    child(args, spec, out[1], chan[1], info[1], bwrap ? std::string() : cwd, confine.get());
   ::setpgid(pid, pid);  // also here, so that a kill right after fork reaches the group
   ::close(out[1]);
   if (info[1] >= 0) ::close(info[1]);
@@ -329,6 +482,8 @@ Sandboxed start_sandboxed(const std::vector<std::string>& argv, const SandboxSpe
   s.pid = pid;
   s.output_fd = out[0];
   s.channel_fd = chan[0];
+  s.fallback = fallback;
+  s.tmp = tmp;
   ::fcntl(s.output_fd, F_SETFL, O_NONBLOCK);
   if (info[0] >= 0) {
     s.inner = read_inner_pid(info[0], 10.0);
@@ -368,6 +523,7 @@ StepEnd kill_and_reap(Sandboxed& s, bool timed_out) {
     }
     s.pid = -1;
   }
+  sweep_step(s);
   if (s.output_fd >= 0) ::close(s.output_fd);
   if (s.channel_fd >= 0) ::close(s.channel_fd);
   s.output_fd = s.channel_fd = -1;
@@ -422,6 +578,7 @@ StepOutput run_sandboxed(const std::vector<std::string>& argv, const SandboxSpec
       r.end.signal = WTERMSIG(status);
     }
     s.pid = -1;
+    sweep_step(s);
     ::close(s.output_fd);
     s.output_fd = -1;
     if (s.channel_fd >= 0) ::close(s.channel_fd);

@@ -45,6 +45,8 @@ struct Sandboxed {
   pid_t inner = -1;    ///< the sandbox's init as the host sees it (-1 when unknown)
   int output_fd = -1;  ///< read end: everything the step printed
   int channel_fd = -1;
+  bool fallback = false;  ///< started in the fallback sandbox: its uid is swept at the end
+  std::string tmp;        ///< the fallback's private folder for the step ("" otherwise)
 };
 
 /// How a step ended.
@@ -58,8 +60,25 @@ struct StepEnd {
   std::string failure(const SandboxLimits& limits) const;
 };
 
-/// Whether sandboxes can be made here; "" if so, else why not (bubblewrap missing, user
-/// namespaces disabled, ...). Probed once by starting a trivial sandbox.
+/// How untrusted steps are isolated here.
+enum class SandboxMode {
+  Namespaces,  ///< bubblewrap: PID, mount, network, IPC and UTS namespaces (docs/grading.md)
+  Fallback,    ///< namespaces refused: a uid of its own, Landlock, seccomp (sandbox_fallback.hpp)
+  Unsafe,      ///< --unsafe-no-sandbox: rlimits, process groups and the wall-clock limit only
+  None         ///< no sandbox can be made and grading unsafely was not asked for
+};
+
+/// The mode probed once: bubblewrap if it can make a sandbox; the fallback only when it
+/// cannot because namespaces are refused and the grader can change uid; else None.
+SandboxMode sandbox_mode();
+/// "bubblewrap", "fallback" or "none" (results.json's extra_data.sandbox.mode).
+const char* sandbox_mode_name(SandboxMode mode);
+/// One line saying what isolates a step in this mode, and why the fallback if it is one.
+std::string sandbox_description();
+
+/// Whether sandboxes can be made here; "" if so (bubblewrap, or the fallback where
+/// namespaces are refused), else why not (bubblewrap missing, namespaces refused and the
+/// grader not root, ...).
 const std::string& sandbox_unavailable();
 
 /// Grade without a sandbox (--unsafe-no-sandbox): processes still get rlimits, their own

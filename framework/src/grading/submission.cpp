@@ -44,6 +44,15 @@ std::vector<Mount> sdk_mounts(const fs::path& prefix) {
   return m;
 }
 
+/// Readable (mode) by this grader's sandbox uid and no other: a folder of root's with the
+/// sandbox's group, so that another grade's submission beside this one cannot read it
+/// (without namespaces every staging folder is in the same /tmp). Not root: the grader's own.
+void private_to_sandbox(const fs::path& p, mode_t root_mode, mode_t own_mode) {
+  if (::geteuid() == 0 && ::chown(p.c_str(), 0, sandbox_ids().second) != 0)
+    throw std::runtime_error("chown " + p.string() + ": " + std::strerror(errno));
+  ::chmod(p.c_str(), ::geteuid() == 0 ? root_mode : own_mode);
+}
+
 void own_for_sandbox(const fs::path& p) {
   const auto [uid, gid] = sandbox_ids();
   if (::geteuid() == 0 && ::chown(p.c_str(), uid, gid) != 0)
@@ -82,10 +91,10 @@ void prepare_submission(const fs::path& submission, const fs::path& sdk_prefix,
     throw std::runtime_error("cannot make a staging folder in " + templ + ": " +
                              std::strerror(errno));
   out.staging = templ;
-  ::chmod(out.staging.c_str(), 0711);
   out.libraries = out.staging / "lib";
   fs::create_directories(out.libraries);
-  ::chmod(out.libraries.c_str(), 0755);
+  private_to_sandbox(out.staging, 0710, 0711);
+  private_to_sandbox(out.libraries, 0750, 0755);
 
   std::error_code ec;
   const fs::path& sub = submission;
@@ -113,9 +122,12 @@ void prepare_submission(const fs::path& submission, const fs::path& sdk_prefix,
     spec.mounts = sdk_mounts(sdk_prefix);
     spec.mounts.push_back({work.string(), "/submission", true});
     spec.cwd = "/submission/build";
+    // pinsim_DIR names the package's folder, so CMake need not list the folders above it
+    // (outside a mount namespace the sandbox may not).
     const auto conf =
         run_sandboxed({"/usr/bin/cmake", "-S", "/submission/src", "-B", "/submission/build",
-                       "-DCMAKE_BUILD_TYPE=Release", "-DCMAKE_PREFIX_PATH=" + sdk_prefix.string()},
+                       "-DCMAKE_BUILD_TYPE=Release", "-DCMAKE_PREFIX_PATH=" + sdk_prefix.string(),
+                       "-Dpinsim_DIR=" + (sdk_prefix / "lib/cmake/pinsim").string()},
                       spec, kLogHead, kLogTail);
     const std::string conf_fail = conf.end.failure(spec.limits);
     if (!conf_fail.empty()) {
@@ -146,6 +158,18 @@ void prepare_submission(const fs::path& submission, const fs::path& sdk_prefix,
             ? out.build_log
             : "the submission holds no plugin library (.so) and no CMakeLists.txt to build one";
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+void stage_worker_program(const fs::path& exe, PreparedSubmission& out) {
+  out.worker_program = exe;
+  if (sandbox_mode() != SandboxMode::Fallback || out.staging.empty()) return;
+  const fs::path dir = out.staging / "bin";
+  fs::create_directories(dir);
+  private_to_sandbox(dir, 0750, 0755);
+  const fs::path copy = dir / "pinsim";
+  if (!copy_regular_file(exe, copy, kMaxLibrary * 4) || ::chmod(copy.c_str(), 0755) != 0)
+    throw std::runtime_error("cannot copy " + exe.string() + " into " + dir.string());
+  out.worker_program = copy;
 }
 
 }  // namespace pinsim::grading

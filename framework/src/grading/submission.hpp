@@ -18,6 +18,9 @@ struct PreparedSubmission {
   /// What the copy of the submission left out and why ("" when nothing): shown once.
   std::string copy_notes;
   double seconds = 0.0;  ///< time spent configuring and building
+  /// The pinsim program the tests' workers run: the grader's own, or in the fallback
+  /// sandbox a copy in the staging folder (the grader's may sit in a folder only it can read).
+  std::filesystem::path worker_program;
 
   PreparedSubmission() = default;
   PreparedSubmission(const PreparedSubmission&) = delete;
@@ -30,5 +33,8 @@ struct PreparedSubmission {
 void prepare_submission(const std::filesystem::path& submission,
                         const std::filesystem::path& sdk_prefix, const Rubric& rubric,
                         PreparedSubmission& out);
+
+/// Sets `out.worker_program` for this sandbox mode (copying `exe` where the mode needs it).
+void stage_worker_program(const std::filesystem::path& exe, PreparedSubmission& out);
 
 }  // namespace pinsim::grading
