@@ -3,10 +3,10 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <pinsim/scene_field/json_in.hpp>
 #include <sstream>
 
 #include "contact_options.hpp"
-#include "json_in.hpp"
 #include "preconditions.hpp"
 #include "shape_builder.hpp"
 

@@ -10,10 +10,9 @@
 #include <cstdint>
 #include <memory>
 #include <pinsim/plugin.hpp>
+#include <pinsim/scene_field/obstacle_field.hpp>
 #include <string>
 #include <vector>
-
-#include "obstacle_field.hpp"
 
 namespace pinsim::box2d {
 

@@ -6,11 +6,10 @@
 #pragma once
 
 #include <pinsim/plugin.hpp>
+#include <pinsim/scene_field/shape.hpp>
 #include <pinsim/transform.hpp>
 #include <string>
 #include <vector>
-
-#include "shape.hpp"
 
 namespace pinsim::box2d {
 

@@ -4,9 +4,8 @@
 #pragma once
 
 #include <pinsim/plugin.hpp>
+#include <pinsim/scene_field/json_in.hpp>
 #include <string>
-
-#include "json_in.hpp"
 
 namespace pinsim::sdf {
 

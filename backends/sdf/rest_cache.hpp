@@ -5,9 +5,9 @@
 #include <cstddef>
 #include <cstdint>
 #include <pinsim/plugin.hpp>
+#include <pinsim/scene_field/obstacle_field.hpp>
 #include <vector>
 
-#include "obstacle_field.hpp"
 #include "sdf_stats.hpp"
 
 namespace pinsim::sdf {

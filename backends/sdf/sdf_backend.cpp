@@ -3,9 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <pinsim/parallel.hpp>
+#include <pinsim/scene_field/limits.hpp>
 
 #include "contact_options.hpp"
-#include "limits.hpp"
 
 namespace pinsim::sdf {
 
@@ -56,23 +56,14 @@ PluginInfo SdfBackend::info() {
   return i;
 }
 
-SdfBackend::SdfBackend(const CreateContext& ctx) {
+SdfBackend::SdfBackend(const CreateContext& ctx)
+    : FieldBackend(ctx, ctx.params.integer("grid_cells"), "sdf backend") {
   const Params& p = ctx.params;
   depth_min_ = p.real("depth_min");
   tol_ = p.real("march_tolerance") * depth_min_;
   max_collisions_ = static_cast<int>(p.integer("max_collisions"));
   max_iterations_ = static_cast<int>(p.integer("max_iterations"));
   rest_speed_ = p.real("rest_speed");
-  std::vector<Vec2> pts;
-  for (std::size_t i = 0; i < ctx.initial.n; ++i) {
-    pts.push_back(ctx.initial.x.col(i));
-    if (!(pts.back().cwiseAbs().maxCoeff() <= kMaxMagnitude))
-      throw Error(ctx.context + ": particle " + std::to_string(i) + " starts at (" +
-                  num(pts.back().x()) + ", " + num(pts.back().y()) +
-                  "), beyond the sdf backend's coordinate limit of 1e+09 in magnitude "
-                  "(backends/sdf/README.md, Limits)");
-  }
-  field_ = ObstacleField(ctx.scene, ctx.context, pts, p.integer("grid_cells"));
   const ContactOptions contacts = read_contacts(ctx);
   particle_contacts_ = contacts.particles;
   particle_e_ = contacts.restitution;
@@ -87,14 +78,8 @@ void SdfBackend::reset_timeline_caches() {
 }
 
 void SdfBackend::input(const std::string& name, bool pressed, double t) {
-  field_.input(name, pressed, t);
+  FieldBackend::input(name, pressed, t);
   reset_timeline_caches();
-}
-
-double SdfBackend::distance(const Vec2& p, double t, int64_t* obstacle) const {
-  const Nearest n = field_.nearest(p, t);
-  if (obstacle) *obstacle = n.k;
-  return n.d;
 }
 
 // Sphere tracing (conservative advancement). Along the path x(s) = x + v s the clearance

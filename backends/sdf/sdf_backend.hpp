@@ -5,16 +5,18 @@
 
 #include <cstdint>
 #include <pinsim/plugin.hpp>
+#include <pinsim/scene_field.hpp>
 #include <string>
 #include <vector>
 
-#include "obstacle_field.hpp"
 #include "rest_cache.hpp"
 #include "sdf_stats.hpp"
 
 namespace pinsim::sdf {
 
-class SdfBackend {
+/// The obstacles, distance() and outline() come from the SDK's scene field (FieldBackend);
+/// input() also resets the caches that depend on the timelines.
+class SdfBackend : public FieldBackend {
  public:
   static PluginInfo info();
   explicit SdfBackend(const CreateContext& ctx);
@@ -27,16 +29,7 @@ class SdfBackend {
   /// reset, so the run continues bit-identical to a backend created with the event in its
   /// scene's "inputs". Throws Error naming an unknown input.
   void input(const std::string& name, bool pressed, double t);
-  /// Signed distance from p to the nearest obstacle at time t (HUGE_VAL if none).
-  double distance(const Vec2& p, double t, int64_t* obstacle) const;
-  /// Each obstacle's boundary at s.t as closed polylines within `tolerance` (<= 0: 1e-3 of
-  /// the obstacles' extent), its bounds then and over its motion (sdf::outline_set).
-  OutlineSet outline(const StateView& s, double tolerance) const {
-    return outline_set(field_, s, tolerance);
-  }
-
   const SdfStats& stats() const { return stats_; }
-  const ObstacleField& field() const { return field_; }
   double depth_min() const { return depth_min_; }
   double march_tolerance() const { return tol_; }
 
@@ -76,7 +69,6 @@ class SdfBackend {
   /// Particle-particle contacts within the step: fills changes_ (see README).
   void schedule_pairs(const MutableState& s, double dt, EventSink& ev);
 
-  ObstacleField field_;
   double depth_min_ = 1e-5;  ///< contact offset ("depthMin"), scene length
   double tol_ = 1e-6;        ///< march tolerance above the offset, scene length
   int max_collisions_ = 16;

@@ -2,10 +2,10 @@
 // framework (pinsim::Simulation loading the plugins), and its errors.
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <pinsim/scene_field/obstacle_field.hpp>
 #include <string>
 
 #include "core/simulation.hpp"
-#include "obstacle_field.hpp"
 #include "shape_builder.hpp"
 #include "tools/crosscheck.hpp"
 

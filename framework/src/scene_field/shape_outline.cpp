@@ -3,8 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
-
-#include "shape.hpp"
+#include <pinsim/scene_field/shape.hpp>
 
 namespace pinsim::sdf {
 namespace {

@@ -5,11 +5,10 @@
 #include <cstdint>
 #include <optional>
 #include <pinsim/plugin.hpp>
+#include <pinsim/scene_field/shape.hpp>
+#include <pinsim/scene_field/timeline.hpp>
 #include <string>
 #include <vector>
-
-#include "shape.hpp"
-#include "timeline.hpp"
 
 namespace pinsim::sdf {
 

@@ -4,8 +4,7 @@
 #include <array>
 #include <cmath>
 #include <numbers>
-
-#include "obstacle_field.hpp"
+#include <pinsim/scene_field/obstacle_field.hpp>
 
 namespace pinsim::sdf {
 namespace {

@@ -1,10 +1,9 @@
-#include "shape.hpp"
-
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <functional>
 #include <numbers>
+#include <pinsim/scene_field/shape.hpp>
 #include <string_view>
 
 namespace pinsim::sdf {

@@ -3,12 +3,11 @@
 
 #include <cstdint>
 #include <pinsim/plugin.hpp>
+#include <pinsim/scene_field/json_in.hpp>
+#include <pinsim/scene_field/outline.hpp>
 #include <pinsim/transform.hpp>
 #include <utility>
 #include <vector>
-
-#include "json_in.hpp"
-#include "outline.hpp"
 
 namespace pinsim::sdf {
 
@@ -175,4 +174,4 @@ class ShapeTree {
 
 }  // namespace pinsim::sdf
 
-#include "shape_eval.inl"
+#include <pinsim/scene_field/shape_eval.inl>

@@ -1,11 +1,9 @@
-#include "obstacle_field.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <pinsim/scene_field/limits.hpp>
+#include <pinsim/scene_field/obstacle_field.hpp>
 #include <set>
-
-#include "limits.hpp"
 
 namespace pinsim::sdf {
 namespace {

@@ -1,8 +1,7 @@
-#include "outline.hpp"
-
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <pinsim/scene_field/outline.hpp>
 
 namespace pinsim::sdf {
 namespace {
