@@ -1,12 +1,20 @@
 #!/usr/bin/env bash
 # Out-of-tree SDK check (CI): install a pinsim build to a temporary prefix, build
 # sdk/template_plugin against the installed SDK with find_package(pinsim), run
-# `pinsim check-plugin` on the built library, and run a scene that uses it.
+# `pinsim check-plugin` on the built library, and run a scene that uses it; then build
+# sdk/pinball_starter (the student_sdf backend on pinsim::scene_field) the same way and
+# run, validate and render the shipped pinball table with it.
 #
-# Usage: scripts/test_sdk.sh [BUILD_DIR]   (default: build/release, already built)
+# Usage: scripts/test_sdk.sh [--starter] [BUILD_DIR]   (default: build/release, built)
+#   --starter: only the install and the pinball starter (the ctest test "sdk: ...").
 set -euo pipefail
 
 ROOT=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+STARTER_ONLY=0
+if [ "${1:-}" = "--starter" ]; then
+  STARTER_ONLY=1
+  shift
+fi
 BUILD=$(cd "${1:-$ROOT/build/release}" && pwd -P)
 TMP=$(mktemp -d "${TMPDIR:-/tmp}/pinsim-sdk.XXXXXX")
 trap 'rm -rf "$TMP"' EXIT
@@ -31,6 +39,75 @@ PINSIM="$TMP/prefix/bin/pinsim"
 CONFIG=$(find "$TMP/prefix" -name pinsimConfig.cmake | head -n1)
 [ -n "$CONFIG" ] || { echo "pinsimConfig.cmake was not installed" >&2; exit 1; }
 PLUGINS=$(dirname "$(find "$TMP/prefix" -name 'libpinsim_plugin_gravity.so' | head -n1)")
+
+# sdk/pinball_starter out of tree against the installed SDK (pinsim::scene_field), on the
+# shipped pinball table with its backend replaced by student_sdf.
+test_starter() {
+  step "build sdk/pinball_starter out of tree against the installed SDK"
+  cp -r "$ROOT/sdk/pinball_starter" "$TMP/starter"
+  local t0=$SECONDS
+  run_logged starter_configure cmake -S "$TMP/starter" -B "$TMP/starter_build" \
+    -DCMAKE_PREFIX_PATH="$TMP/prefix"
+  run_logged starter_build cmake --build "$TMP/starter_build" -j2
+  echo "configured and built in $((SECONDS - t0)) s"
+  grep -q "warning" "$TMP/starter_build.log" && {
+    echo "the starter compiled with warnings:" >&2
+    cat "$TMP/starter_build.log" >&2
+    exit 1
+  }
+  [ -f "$TMP/starter_build/libpinsim_plugin_student_sdf.so" ] || {
+    echo "the starter did not produce libpinsim_plugin_student_sdf.so" >&2
+    exit 1
+  }
+  # The table as the kit's README makes it: the shipped scene, backend student_sdf.
+  sed -e 's/"name": "sdf",/"name": "student_sdf",/' \
+    -e 's/"params": {"depth_min": [^}]*}/"params": {}/' "$ROOT/configs/pinball.json" \
+    >"$TMP/pinball_student.json"
+  grep -q '"name": "student_sdf"' "$TMP/pinball_student.json" || {
+    echo "could not set the backend of configs/pinball.json to student_sdf" >&2
+    exit 1
+  }
+  export PINSIM_PLUGIN_PATH="$TMP/starter_build:$PLUGINS"
+  step "pinsim validate, run and render the pinball table with student_sdf"
+  "$PINSIM" -q validate "$TMP/pinball_student.json"
+  "$PINSIM" -q run "$ROOT/configs/pinball.json" --backend student_sdf --set time.duration=1 \
+    --out "$TMP/starter_run"
+  # The ball starts resting on the plunger: the starter must report contacts with it.
+  local contacts
+  contacts=$(($(wc -l <"$TMP/starter_run/events.csv") - 1))
+  grep -q ',plunger,' "$TMP/starter_run/events.csv" || {
+    echo "student_sdf reported no contact with the plunger ($contacts events)" >&2
+    exit 1
+  }
+  echo "student_sdf: $contacts contacts in 1 s of the pinball table"
+  # The table is drawn from the backend's outline() (FieldBackend): no warning about it.
+  "$PINSIM" render "$TMP/starter_run" --out "$TMP/starter.png" 2>"$TMP/render.log"
+  [ -s "$TMP/starter.png" ] || { echo "render wrote no picture" >&2; cat "$TMP/render.log" >&2; exit 1; }
+  if grep -q "does not report its obstacles' outlines" "$TMP/render.log"; then
+    echo "student_sdf has no outline(): the table is not drawn" >&2
+    cat "$TMP/render.log" >&2
+    exit 1
+  fi
+  step "pinsim play the table with student_sdf (no window: SDL's dummy video driver), rerun it"
+  SDL_VIDEODRIVER=dummy "$PINSIM" -q play "$TMP/pinball_student.json" --seconds 0.3 \
+    --record "$TMP/game.json" --screenshot "$TMP/game.png" 2>"$TMP/play.log" || {
+    cat "$TMP/play.log" >&2
+    exit 1
+  }
+  [ -s "$TMP/game.png" ] && [ -s "$TMP/game.json" ] || { echo "play wrote no frame or recording" >&2; exit 1; }
+  if grep -q "does not report its obstacles' outlines" "$TMP/play.log"; then
+    echo "play: student_sdf has no outline()" >&2
+    exit 1
+  fi
+  "$PINSIM" play "$TMP/pinball_student.json" --rerun "$TMP/game.json" | tee "$TMP/rerun.log"
+  grep -q "identical to the recording" "$TMP/rerun.log" || { echo "the rerun differs" >&2; exit 1; }
+  unset PINSIM_PLUGIN_PATH
+  echo "STARTER OK: student_sdf built against $(dirname "$CONFIG"), run, rendered, played"
+}
+if [ "$STARTER_ONLY" = 1 ]; then
+  test_starter
+  exit 0
+fi
 
 step "the installed pinsim loads the installed plugins (not the build tree's)"
 first_found() {  # the first path `pinsim plugins` lists for plugin $2 (the one loaded)
@@ -85,3 +162,4 @@ step "pinsim run a scene that uses it"
 PINSIM_PLUGIN_PATH="$TMP/build:$PLUGINS" "$PINSIM" -q run "$TMP/src/scene.json" --out "$TMP/out"
 [ -s "$TMP/out/trajectory.csv" ] || { echo "the run wrote no trajectory" >&2; exit 1; }
 echo "SDK OK: template built against $(dirname "$CONFIG"), checked and run"
+test_starter

@@ -259,7 +259,9 @@ ViewBox obstacles_view(const BackendInstance& backend, const State& state) {
   if (!backend.has_outline()) {
     spdlog::warn(
         "backend '{}' does not report its obstacles' outlines (no PINSIM_CAP_OUTLINES): the "
-        "picture's view covers the particles only (--view sets another)",
+        "picture's view covers the particles only (render and replay set another with --view; "
+        "play and share have no other; FieldBackend in pinsim/scene_field.hpp gives a backend "
+        "outline())",
         backend.plugin().name());
     return v;
   }
