@@ -1,29 +1,61 @@
 #!/usr/bin/env bash
 # Installs the Debian packages pinsim needs (only the missing ones), then configures and
 # builds the release preset. Safe to run again: it does only what is left to do.
+#   scripts/setup.sh [run|test]
+# run (the default; README command 1, the Gradescope image): the packages that build pinsim
+#   and its plugins and backends, then only the `pinsim` program and the plugins (target
+#   pinsim_run): what `pinsim run`, render, play, grade, crosscheck need.
+# test (README command 2): also what only the tests, benches and CI stages need (Catch2,
+#   browsers, Emscripten, clang, Slurm, node and npm, gnuplot, h5py), then the whole build.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+mode=${1:-run}
+case "$mode" in
+  run|test) ;;
+  *) echo "setup: unknown mode '$mode' (expected run or test)" >&2; exit 2 ;;
+esac
 
-packages=(cmake g++ make pkg-config libeigen3-dev libboost-dev libspdlog-dev catch2
-          nlohmann-json3-dev libcli11-dev libbox2d-dev libtbb-dev
-          libcairo2-dev libsdl2-dev chromium xvfb xauth gnuplot-nox python3-jsonschema
-          slurm-wlm munge bubblewrap clang libclang-rt-14-dev firefox-esr emscripten
-          libhdf5-dev hdf5-tools python3-h5py liblbfgspp-dev)
+# Building pinsim, its plugins and backends (and, for `pinsim grade`, source submissions in
+# a bubblewrap sandbox).
+packages=(cmake g++ make pkg-config libeigen3-dev libboost-dev libspdlog-dev
+          nlohmann-json3-dev libcli11-dev libbox2d-dev libtbb-dev libcairo2-dev libsdl2-dev
+          libhdf5-dev liblbfgspp-dev bubblewrap)
+if [ "$mode" = test ]; then
+  # The tests (Catch2, schema and HDF5 checks, browser and Slurm tests), the bench and stress
+  # figures (gnuplot), the web build (Emscripten) and the asan and fuzz stages (clang).
+  packages+=(catch2 python3-jsonschema hdf5-tools python3-h5py gnuplot-nox chromium xvfb
+             xauth firefox-esr emscripten slurm-wlm munge clang libclang-rt-14-dev)
+fi
 missing=()
 for p in "${packages[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
 done
-# node and npm for the browser tests (tests/web): Debian's nodejs (18.20 on bookworm) and
-# npm (9.2), only when the commands are missing - a node from elsewhere (nodesource's nodejs
-# ships its own npm and conflicts with Debian's npm package) is used as it is.
-command -v node >/dev/null 2>&1 || missing+=(nodejs)
-command -v npm >/dev/null 2>&1 || missing+=(npm)
+if [ "$mode" = test ]; then
+  # node and npm for the browser tests (tests/web): Debian's nodejs (18.20 on bookworm) and
+  # npm (9.2), only when the commands are missing - a node from elsewhere (nodesource's
+  # nodejs ships its own npm and conflicts with Debian's npm package) is used as it is.
+  command -v node >/dev/null 2>&1 || missing+=(nodejs)
+  command -v npm >/dev/null 2>&1 || missing+=(npm)
+fi
 if ((${#missing[@]})); then
   echo "setup: installing missing Debian packages: ${missing[*]}"
   sudo=""
   [ "$(id -u)" -eq 0 ] || sudo="sudo"
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
+
+jobs=$(nproc 2>/dev/null || echo 2)
+if [ "$mode" = run ]; then
+  # A first configure leaves out the tests and benches (Catch2 is not installed yet); a build
+  # folder configured by `setup.sh test` keeps them.
+  if [ -f build/release/CMakeCache.txt ]; then
+    cmake --preset release >/dev/null
+  else
+    cmake --preset release -DPINSIM_BUILD_TESTS=OFF -DPINSIM_BUILD_BENCH=OFF >/dev/null
+  fi
+  cmake --build --preset release -j "$jobs" --target pinsim_run
+  exit 0
 fi
 
 # The browser tests' node modules (puppeteer-core, pngjs; pinned in tests/web/package-lock.json)
@@ -40,6 +72,5 @@ if command -v npm >/dev/null 2>&1 && ! cmp -s "$web/package-lock.json" "$web/nod
   fi
 fi
 
-jobs=$(nproc 2>/dev/null || echo 2)
-cmake --preset release >/dev/null
+cmake --preset release -DPINSIM_BUILD_TESTS=ON -DPINSIM_BUILD_BENCH=ON >/dev/null
 cmake --build --preset release -j "$jobs"

@@ -15,7 +15,7 @@
 # (each starts and stops its own cluster, in its own folder, on free ports).
 set -euo pipefail
 cd "$(dirname "$0")/.."
-bash scripts/setup.sh
+bash scripts/setup.sh test
 jobs=$(nproc 2>/dev/null || echo 2)
 stages=${PINSIM_TEST_STAGES:-release web asan fuzz}
 has() { [[ " $stages " == *" $1 "* ]]; }
