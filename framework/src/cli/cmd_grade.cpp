@@ -13,6 +13,7 @@
 
 #include "cli_slurm.hpp"
 #include "commands.hpp"
+#include "core/data_files.hpp"
 #include "core/input_error.hpp"
 #include "core/stop_signals.hpp"
 #include "grading/grader.hpp"
@@ -219,7 +220,9 @@ int grade_batch_on_slurm(const GradeArgs& a) {
 void add_grade_command(CLI::App& app) {
   auto a = std::make_shared<GradeArgs>();
   CLI::App* c = app.add_subcommand("grade", "Grade a submitted plugin or backend against a rubric");
-  c->add_option("--rubric", a->rubric, "Rubric file (configs/grading/*.json)")->required();
+  c->add_option("--rubric", a->rubric,
+                "Rubric file, or the name of a shipped one (configs/grading/NAME.json)")
+      ->required();
   c->add_option("--submission", a->submission,
                 "Source folder (CMakeLists.txt using find_package(pinsim)), folder of libraries, "
                 "or one library; with --batch, a folder of such submissions")
@@ -234,6 +237,8 @@ void add_grade_command(CLI::App& app) {
   c->add_option("--shard", a->shard, "With --batch: grade every N-th submission from i (i/N)");
   add_slurm_options(c, a->slurm);
   c->callback([a, c] {
+    // A rubric named relative to the shipped ones (configs/grading; core/data_files.hpp).
+    a->rubric = find_data_file(a->rubric, "configs/grading").string();
     check_slurm_options(c, a->slurm, c->count("--shard") > 0);
     if (a->slurm.slurm && !a->batch) throw InputError("--slurm grades with --batch only");
     grading::set_unsafe_no_sandbox(a->unsafe);

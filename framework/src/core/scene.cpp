@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "core/bounded_read.hpp"
+#include "core/data_files.hpp"
 #include "core/format.hpp"
 #include "core/json_read.hpp"
 #include "core/trajectory_hdf5.hpp"
@@ -413,13 +414,18 @@ Scene parse_scene(const std::string& text, const std::string& label, const fs::p
   return s;
 }
 
-const std::string& scene_file_text(const fs::path& file) {
+const std::string& scene_file_text(const fs::path& name) {
+  // A relative name not found here is looked up among the shipped scenes (data_files.hpp).
+  const fs::path file = find_data_file(name, "configs");
   static std::mutex mutex;
   static std::map<std::string, std::string> texts;
   const std::lock_guard<std::mutex> lock(mutex);
   if (const auto it = texts.find(file.string()); it != texts.end()) return it->second;
   std::error_code ec;
-  if (!fs::exists(file, ec)) throw SceneError(file.string() + ": scene file not found");
+  if (!fs::exists(file, ec))
+    throw SceneError(file.string() + ": scene file not found" +
+                     (file.is_relative() ? " (nor in " + (data_dir() / "configs").string() + ")"
+                                         : std::string()));
   if (fs::is_directory(file, ec))
     throw SceneError(file.string() + ": is a folder, expected a scene file");
   std::ifstream in(file);
@@ -428,7 +434,8 @@ const std::string& scene_file_text(const fs::path& file) {
   return texts.emplace(file.string(), read_json_text(in, file.string())).first->second;
 }
 
-Scene load_scene(const fs::path& file, const std::vector<std::string>& overrides) {
+Scene load_scene(const fs::path& name, const std::vector<std::string>& overrides) {
+  const fs::path file = find_data_file(name, "configs");
   return parse_scene(scene_file_text(file), file.string(), fs::absolute(file).parent_path(),
                      overrides);
 }
