@@ -22,8 +22,10 @@ const std::set<std::string> kForceChecks = {"load",
                                             "dissipation",
                                             "reference",
                                             "simulation"};
-const std::set<std::string> kBackendChecks = {"load", "backend_agreement", "backend_no_tunnelling",
-                                              "backend_approaching_only"};
+const std::set<std::string> kBackendChecks = {
+    "load",          "backend_agreement",   "backend_no_tunnelling", "backend_approaching_only",
+    "backend_path",  "backend_free_flight", "backend_bounce",        "backend_rest",
+    "backend_energy"};
 
 std::string read_text(const fs::path& p) {
   std::ifstream in(p);
@@ -90,8 +92,8 @@ Rubric load_rubric(const fs::path& file) {
     require_object(t, at);
     check_keys(t,
                {"name", "check", "plugin", "points", "visibility", "hint", "params", "reference",
-                "scene", "tolerance", "trials", "seed", "assume_internal", "second_opinion",
-                "second_opinion_params"},
+                "scene", "tolerance", "velocity_tolerance", "path_tolerance", "trials", "seed",
+                "assume_internal", "second_opinion", "second_opinion_params"},
                at);
     RubricTest rt;
     rt.spec = t;
@@ -119,7 +121,7 @@ Rubric load_rubric(const fs::path& file) {
       require_object(t["second_opinion_params"], at / "second_opinion_params");
     for (const char* k : {"reference", "scene", "second_opinion"})
       if (t.contains(k)) read_string_or(t, k, "", at);
-    for (const char* k : {"tolerance", "trials", "seed"})
+    for (const char* k : {"tolerance", "velocity_tolerance", "path_tolerance", "trials", "seed"})
       if (t.contains(k)) read_number_or(t, k, 0.0, at);
     if (t.contains("assume_internal") && !t["assume_internal"].is_boolean())
       (at / "assume_internal").fail("expected true or false");
