@@ -8,6 +8,12 @@
 //   3: reports nothing about the push
 //   4: reports it with a false vn_before < 0 (approaching)
 //   5: reports it with vn_before = NaN
+// 6-8: adversaries of the motion gate, each reporting the reference's contacts:
+//   6: does nothing at all (the balls never move)
+//   7: moves them as the reference does, then puts them back where the step started
+//   8: moves them as the reference does, then zeroes their velocity (stops them)
+//   9: naive discrete detection (the assignment's starter): drift over the step, one check
+//      of the SDF at its end, a restitution impulse if the ball overlaps and approaches
 #include <cmath>
 
 #include "sdf_backend.hpp"
@@ -48,6 +54,35 @@ class StudentBackend : public pinsim::sdf::SdfBackend {
         ev.emit(e);
       }
       s.x.col(i) += dt * s.v.col(i);
+    }
+  }
+#elif SUBMISSION == 6
+  void advance(pinsim::MutableState&, double, pinsim::EventSink&) {}
+#elif SUBMISSION == 7 || SUBMISSION == 8
+  void advance(pinsim::MutableState& s, double dt, pinsim::EventSink& ev) {
+    const Eigen::Matrix2Xd x0 = s.x;
+    SdfBackend::advance(s, dt, ev);
+#if SUBMISSION == 7
+    s.x = x0;
+#else
+    s.v.setZero();
+#endif
+  }
+#elif SUBMISSION == 9
+  void advance(pinsim::MutableState& s, double dt, pinsim::EventSink& ev) {
+    const double t1 = s.t + dt;
+    for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
+      s.x.col(i) += dt * s.v.col(i);
+      const pinsim::Vec2 p = s.x.col(i);
+      int64_t obstacle = -1;
+      if (distance(p, t1, &obstacle) >= s.radius[i] || obstacle < 0) continue;
+      const pinsim::Vec2 n = normal(p, t1);
+      const double vn = s.v.col(i).dot(n);
+      if (vn >= 0.0) continue;
+      const auto& o = field().obstacle(static_cast<std::size_t>(obstacle));
+      s.v.col(i) -= (1.0 + o.material.restitution) * vn * n;
+      pinsim_event e{t1, i, obstacle, -1, {p.x(), p.y()}, {n.x(), n.y()}, vn, s.v.col(i).dot(n)};
+      ev.emit(e);
     }
   }
 #elif SUBMISSION >= 3
