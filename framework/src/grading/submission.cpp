@@ -34,13 +34,15 @@ int collect_libraries(const fs::path& dir, const fs::path& lib) {
   return n;
 }
 
-/// Read-only mounts of the SDK (headers and CMake package) at their own paths.
+/// Read-only mounts of the SDK (headers, CMake package and the pinsim::scene_field archive)
+/// at their own paths.
 std::vector<Mount> sdk_mounts(const fs::path& prefix) {
   std::vector<Mount> m;
   std::error_code ec;
-  for (const fs::path& p : {prefix / "lib/cmake/pinsim", prefix / "include/pinsim",
-                            fs::path(PINSIM_SOURCE_DIR) / "framework/include"})
-    if (fs::is_directory(p, ec)) m.push_back({p.string(), p.string(), false});
+  for (const fs::path& p :
+       {prefix / "lib/cmake/pinsim", prefix / "include/pinsim",
+        prefix / "lib/libpinsim_scene_field.a", fs::path(PINSIM_SOURCE_DIR) / "framework/include"})
+    if (fs::exists(p, ec)) m.push_back({p.string(), p.string(), false});
   return m;
 }
 
