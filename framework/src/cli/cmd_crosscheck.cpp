@@ -53,7 +53,10 @@ int crosscheck_command(const CrosscheckArgs& a) {
   for (const auto& b : spec.backends) {
     if (stop_signal().load() != 0) break;
     spdlog::info("{}: running on {} ({} steps)", scene.label, b, scene.steps());
-    runs.push_back(run_for_crosscheck(scene, loader, b, spec));
+    // With --out, each backend's run folder beside the report: render of the folder
+    // overlays them.
+    const std::filesystem::path run_dir = std::filesystem::path(a.out) / b;
+    runs.push_back(run_for_crosscheck(scene, loader, b, spec, a.out.empty() ? nullptr : &run_dir));
   }
   bool cut = runs.size() < spec.backends.size();
   for (const auto& r : runs) cut = cut || r.stopped_by != 0;
@@ -90,7 +93,9 @@ void add_crosscheck_command(CLI::App& app) {
       "crosscheck", "Run a scene on two backends and report where and why they differ");
   c->add_option("scene", a->scene, "Scene file (JSON)")->required();
   c->add_option("--backends", a->backends, "Two backends, default sdf,box2d");
-  c->add_option("--out,-o", a->out, "Folder for report.json and report.txt");
+  c->add_option("--out,-o", a->out,
+                "Folder for report.json, report.txt and one run folder per backend (NAME/, as "
+                "run --out writes; render of the folder overlays them)");
   c->add_option("--set", a->set, "Override a scene value, e.g. --set time.dt=0.0005")->take_all();
   c->callback([a] { throw CLI::RuntimeError(crosscheck_command(*a)); });
 }

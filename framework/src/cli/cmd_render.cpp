@@ -31,6 +31,12 @@ int render_command(const RenderArgs& a) {
   fs::path default_out;
   for (const auto& in : a.inputs) {
     const fs::path p = in;
+    std::error_code ec;
+    if (!fs::exists(p, ec))
+      throw InputError(in + ": no such " +
+                       (p.extension() == ".json" ? std::string("scene file")
+                                                 : std::string("run folder or scene file")) +
+                       " (render takes a scene file, run folders, or a folder of run folders)");
     if (fs::is_directory(p)) {
       std::vector<fs::path> dirs;
       if (is_run_dir(p))

@@ -26,6 +26,9 @@ int main(int argc, char** argv) {
   app.add_flag("-v,--verbose", verbose, "More log output (-vv for trace)");
   app.add_flag("-q,--quiet", quiet, "Only errors");
   app.require_subcommand(1);
+  // -q, -v after the subcommand too (`pinsim run SCENE -q`): its unknown options fall
+  // through to these.
+  app.fallthrough();
   app.parse_complete_callback([&] {
     spdlog::set_level(quiet          ? spdlog::level::err
                       : verbose >= 2 ? spdlog::level::trace

@@ -11,6 +11,16 @@ uint64_t ContactTracker::key_of(const pinsim_event& e) {
   return (static_cast<uint64_t>(e.particle) << 32) | partner;
 }
 
+void ContactTracker::move_open(std::size_t from, std::size_t to) {
+  auto [b, e] = index_.equal_range(open_[from].key);
+  for (auto it = b; it != e; ++it)
+    if (it->second == from) {
+      it->second = to;
+      break;
+    }
+  open_[to] = open_[from];
+}
+
 void ContactTracker::step(uint64_t step, const std::vector<pinsim_event>& events,
                           std::vector<pinsim_event>& impacts, std::vector<ContactSpan>& closed) {
   for (const pinsim_event& e : events) {
@@ -18,8 +28,19 @@ void ContactTracker::step(uint64_t step, const std::vector<pinsim_event>& events
     const double inv_m = p < inv_mass_.size() ? inv_mass_[p] : 0.0;
     const double j = inv_m > 0.0 ? (e.vn_after - e.vn_before) / inv_m : 0.0;
     const uint64_t key = key_of(e);
-    const auto [it, fresh] = index_.try_emplace(key, open_.size());
-    if (fresh) {
+    // The pair's open touch with the nearest normal continues, if it is near enough.
+    std::size_t at = open_.size();
+    double best = kMaxTurnCos;
+    auto [b, end] = index_.equal_range(key);
+    for (auto it = b; it != end; ++it) {
+      const Open& o = open_[it->second];
+      const double c = o.normal[0] * e.normal[0] + o.normal[1] * e.normal[1];
+      if (c >= best) {
+        best = c;
+        at = it->second;
+      }
+    }
+    if (at == open_.size()) {
       Open o;
       o.key = key;
       o.span.particle = e.particle;
@@ -27,10 +48,13 @@ void ContactTracker::step(uint64_t step, const std::vector<pinsim_event>& events
       o.span.other = e.other;
       o.span.t_begin = e.t;
       open_.push_back(o);
+      index_.emplace(key, at);
       impacts.push_back(e);
     }
-    Open& o = open_[it->second];
+    Open& o = open_[at];
     o.last_step = step;
+    o.normal[0] = e.normal[0];
+    o.normal[1] = e.normal[1];
     o.span.t_end = e.t;
     ++o.span.impulses;
     o.span.impulse += j;
@@ -43,11 +67,13 @@ void ContactTracker::step(uint64_t step, const std::vector<pinsim_event>& events
       continue;
     }
     closed.push_back(open_[i].span);
-    index_.erase(open_[i].key);
-    if (i + 1 != open_.size()) {
-      open_[i] = open_.back();
-      index_[open_[i].key] = i;
-    }
+    auto [b, e] = index_.equal_range(open_[i].key);
+    for (auto it = b; it != e; ++it)
+      if (it->second == i) {
+        index_.erase(it);
+        break;
+      }
+    if (i + 1 != open_.size()) move_open(open_.size() - 1, i);
     open_.pop_back();
   }
 }

@@ -24,16 +24,27 @@ struct ContactSpan {
   bool open = false;      ///< still touching when the run ended
 };
 
-/// Tracks touches step by step. A touch begins with an impulse on a pair (particle,
-/// obstacle or other particle) that had none in the kGapSteps steps before; that impulse is
-/// the touch's impact. It ends when kGapSteps steps pass without an impulse on the pair.
+/// Tracks touches step by step. An impact is an approach: an impulse on a pair (particle,
+/// obstacle or other particle) begins a touch, and is that touch's impact, unless it
+/// continues one of the pair's open touches: one whose last impulse was at most kGapSteps
+/// steps before, with a normal within kMaxTurnCos (cos 30 degrees) of this impulse's. A
+/// touch ends when kGapSteps steps pass without an impulse continuing it.
 /// The gap: a ball sliding along a curved wall with restitution bounces off by a fraction
 /// of the backend's rest speed and is back one to three steps later (the pinball ball:
 /// 298 of its 335 impulses follow the pair's previous one by 1-4 steps, the next gap is 10).
+/// The normal: one obstacle may have several faces (a box, a polygon). A ball that hits
+/// one face and, a few steps later, another face of the same obstacle approaches a new
+/// surface: two impacts, two touches. Along a smooth wall the normal turns by the distance
+/// slid over the radius of curvature, a few degrees per step; at a concave corner between
+/// faces it jumps by the corner's turn (90 degrees in a box). A ball resting in a corner
+/// keeps two touches open, one per face.
 /// Memory: one entry per touch open at the time, nothing kept for closed ones.
 class ContactTracker {
  public:
   static constexpr uint64_t kGapSteps = 4;
+  /// cos 30 degrees: impulses on a pair whose normals differ by more are on different
+  /// surfaces.
+  static constexpr double kMaxTurnCos = 0.8660254037844386;
 
   /// `inv_mass`: 1/mass per particle (0: pinned; its impulses count 0).
   explicit ContactTracker(std::vector<double> inv_mass) : inv_mass_(std::move(inv_mass)) {}
@@ -52,12 +63,15 @@ class ContactTracker {
     ContactSpan span;
     uint64_t last_step = 0;
     uint64_t key = 0;
+    double normal[2] = {0.0, 0.0};  ///< the last impulse's
   };
+  /// Moves the touch at open_[from] to open_[to] and updates its index entry.
+  void move_open(std::size_t from, std::size_t to);
   static uint64_t key_of(const pinsim_event& e);
 
   std::vector<double> inv_mass_;
   std::vector<Open> open_;
-  std::unordered_map<uint64_t, std::size_t> index_;  ///< key -> position in open_
+  std::unordered_multimap<uint64_t, std::size_t> index_;  ///< key -> positions in open_
 };
 
 }  // namespace pinsim

@@ -157,17 +157,10 @@ class StrictSax : public nlohmann::json_sax<nlohmann::json> {
   int error_id() const { return error_id_; }
   const std::string& error() const { return error_; }
   /// The JSON path of the value being read: "forces[2].params.k".
-  std::string path() const {
-    std::string p;
-    for (const Frame& f : frames_) {
-      if (f.object) {
-        if (!f.key.empty()) p += (p.empty() ? "" : ".") + f.key;
-      } else if (f.index > 0) {
-        p += "[" + std::to_string(f.index - 1) + "]";
-      }
-    }
-    return p;
-  }
+  std::string path() const { return path_of(false); }
+  /// The JSON path of the value whose text is being read when the parser fails inside it
+  /// (a number out of range): in an array, the entry after the last one counted.
+  std::string path_of_next() const { return path_of(true); }
 
  private:
   struct Frame {
@@ -176,6 +169,20 @@ class StrictSax : public nlohmann::json_sax<nlohmann::json> {
     std::string key;
     std::set<std::string> keys;
   };
+  std::string path_of(bool next) const {
+    std::string p;
+    for (std::size_t k = 0; k < frames_.size(); ++k) {
+      const Frame& f = frames_[k];
+      if (f.object) {
+        if (!f.key.empty()) p += (p.empty() ? "" : ".") + f.key;
+      } else if (next && k + 1 == frames_.size()) {
+        p += "[" + std::to_string(f.index) + "]";
+      } else if (f.index > 0) {
+        p += "[" + std::to_string(f.index - 1) + "]";
+      }
+    }
+    return p;
+  }
   /// A value or an object key: count it in the document.
   bool counted() {
     if (++values_ <= limits_.max_values) return true;
@@ -265,7 +272,9 @@ nlohmann::json parse_json_text(const std::string& text, const std::string& label
     // position given is the literal's last byte, the message names where it starts.
     const std::string& lit = sax.error_token();
     const std::size_t start = sax.error_pos() + 1 - std::min(sax.error_pos(), lit.size());
-    throw InputError(label + ":" + line_col(text, start) + ": number " + lit +
+    const std::string path = sax.path_of_next();
+    throw InputError(label + ":" + line_col(text, start) + ": " +
+                     (path.empty() ? "(top level)" : path) + ": number " + lit +
                      " is out of range: a double holds magnitudes up to 1.8e308");
   }
   if (auto p = what.find("syntax error"); p != std::string::npos) what = what.substr(p);

@@ -3,7 +3,9 @@
 #include <spdlog/spdlog.h>
 #include <time.h>
 
+#include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <memory>
 
 #include "core/crash_summary.hpp"
@@ -19,6 +21,31 @@ double process_cpu_s() {
   timespec ts{};
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
   return static_cast<double>(ts.tv_sec) + 1e-9 * static_cast<double>(ts.tv_nsec);
+}
+/// What may add energy to the run, "" if nothing: then its total energy can only stay or
+/// fall (up to the integrator's error) and a rise past kEnergyRiseBound is a warning.
+/// Conservative: anything that may do work outside the energy the forces report counts.
+std::string energy_source(const Scene& scene, const Simulation& sim) {
+  for (const auto& f : sim.forces())
+    if (!f->has_energy()) return "force " + f->plugin().name() + " reports no energy";
+  const nlohmann::json& b = scene.backend_scene;
+  if (!b.is_object()) return "";
+  if (b.contains("inputs") && b["inputs"].is_array() && !b["inputs"].empty())
+    return "scripted inputs";
+  auto above = [](const nlohmann::json& m, const char* key, double limit) {
+    return m.is_object() && m.contains(key) && m[key].is_number() && m[key].get<double>() > limit;
+  };
+  if (b.contains("obstacles") && b["obstacles"].is_array())
+    for (const auto& o : b["obstacles"]) {
+      if (!o.is_object()) continue;
+      if (o.contains("motion")) return "a moving obstacle";
+      const nlohmann::json m = o.value("material", nlohmann::json());
+      if (above(m, "kick", 0.0)) return "a kicking obstacle";
+      if (above(m, "restitution", 1.0)) return "restitution above 1";
+    }
+  if (b.contains("contacts") && above(b["contacts"], "restitution", 1.0))
+    return "restitution above 1";
+  return "";
 }
 }  // namespace
 
@@ -50,6 +77,11 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
     crash = std::make_unique<CrashSummary>(rec->dir(), summary);
     rec->write_state(sim.state());
   }
+
+  // The start's energy scale: kinetic plus |potential| energy (1 if both are 0).
+  double scale0 = sim.kinetic_energy(sim.state()) + std::abs(sim.potential_energy(sim.state()));
+  if (!(scale0 > 0.0)) scale0 = 1.0;
+  nlohmann::json warnings = nlohmann::json::array();
 
   const uint64_t steps = scene.steps();
   const auto start = std::chrono::steady_clock::now();
@@ -159,6 +191,22 @@ RunResult run_scene(const Scene& scene, PluginLoader& loader, const RunSettings&
                        {"max_relative_drift", sim.max_energy_drift()},
                        {"checked_every_steps", scene.energy_every},
                        {"complete", sim.energy_complete()}};
+  // Energy that rose with nothing to add it: a force's sign or its energy is wrong.
+  {
+    const double e0 = sim.energy_start(), rise = e_end - e0;
+    const double bound = kEnergyRiseBound * std::max(scale0, 1e-300);
+    if (status != "error" && std::isfinite(e_end) && rise > bound && sim.energy_complete() &&
+        energy_source(scene, sim).empty()) {
+      const std::string what =
+          "the total energy rose from " + num(e0) + " to " + num(e_end) + " (by " +
+          num(rise / scale0) + " x the start's kinetic plus |potential| energy, " + num(scale0) +
+          "; the bound is " + num(kEnergyRiseBound) +
+          ") with nothing in the scene that adds energy: check the forces' signs and energies";
+      warnings.push_back({{"kind", "energy_rise"}, {"message", what}});
+      spdlog::warn("{}: {}", scene.label, what);
+    }
+  }
+  if (!warnings.empty()) summary["warnings"] = warnings;
   if (const nlohmann::json solver = sim.integrator_stats(); !solver.is_null())
     summary["solver"] = solver;
   summary["state_hash"] = fmt::format("{:016x}", sim.state().hash());

@@ -5,6 +5,10 @@
 #include <cerrno>
 
 namespace pinsim {
+
+const int kStopSignals[10] = {SIGINT,  SIGTERM, SIGHUP,  SIGQUIT,   SIGPIPE,
+                              SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGXCPU};
+
 namespace {
 
 std::atomic<int> g_stop{0};
@@ -21,6 +25,9 @@ bool record(int sig, int& first) noexcept {
 extern "C" void on_stop_signal(int sig) {
   int first = 0;
   if (record(sig, first) || first != sig) return;  // the first, or another kind: noted
+  // A closed pipe raises SIGPIPE at every write to it (a log line after `| head` ended):
+  // those writes fail with EPIPE instead, and the command stops as after the first.
+  if (sig == SIGPIPE) return;
   // A second signal of the same kind: the process ends of it, after the action (a run's
   // summary.json) is done. Raised now, the signal is delivered when this handler returns.
   const int saved_errno = errno;
@@ -42,7 +49,7 @@ void install_stop_handlers() {
   // SA_RESTART: the signal must not fail a write or read elsewhere; loops poll the flag.
   // A second signal of the same kind gets the default action from the handler itself.
   sa.sa_flags = SA_RESTART;
-  for (int s : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) {
+  for (int s : kStopSignals) {
     // Under nohup (SIGHUP ignored when pinsim started) a hangup stays ignored. SIGINT and
     // SIGQUIT, which a shell ignores for its background jobs, are caught all the same, so
     // that `kill -INT` stops a sweep started with `&` cleanly.
@@ -87,6 +94,12 @@ const char* signal_abbrev(int sig) noexcept {
       return "SIGPIPE";
     case SIGALRM:
       return "SIGALRM";
+    case SIGUSR1:
+      return "SIGUSR1";
+    case SIGUSR2:
+      return "SIGUSR2";
+    case SIGVTALRM:
+      return "SIGVTALRM";
     case SIGTERM:
       return "SIGTERM";
     case SIGXCPU:

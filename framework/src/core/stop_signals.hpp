@@ -1,8 +1,12 @@
-// SIGINT, SIGTERM, SIGHUP and SIGQUIT ask a long command (run, bench, stress, crosscheck,
-// grade) to stop cleanly: it finishes its current step, point or test, writes what is done
-// and exits with 128 + the signal's number. A second signal of the same kind ends the
-// process at once (the signal's default action), after the second-stop action (a run's
-// summary.json).
+// The catchable signals whose default action ends a process without a crash (kStopSignals:
+// SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGPIPE, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGXCPU)
+// ask a long command (run, bench, stress, crosscheck, grade) to stop cleanly: it finishes
+// its current step, point or test, writes what is done and exits with 128 + the signal's
+// number. A second signal of the same kind ends the process at once (the signal's default
+// action), after the second-stop action (a run's summary.json); except SIGPIPE, which a
+// closed pipe raises at every write: later ones are only noted (the writes fail, EPIPE).
+// Not caught: SIGPROF (profilers), real-time signals, and SIGXFSZ (ignored by main: a write
+// past the file-size limit fails instead).
 #pragma once
 
 #include <atomic>
@@ -10,8 +14,11 @@
 
 namespace pinsim {
 
-/// Installs the handlers for the four stop signals; SIGHUP stays ignored if it is ignored
-/// when this is called (nohup). Safe to call more than once.
+/// The stop signals.
+extern const int kStopSignals[10];
+
+/// Installs the handlers for the stop signals; SIGHUP stays ignored if it is ignored when
+/// this is called (nohup). Safe to call more than once.
 void install_stop_handlers();
 
 /// The first stop signal received since the handlers were installed, or 0. The run loop

@@ -5,10 +5,13 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <memory>
 #include <optional>
 #include <sstream>
 
 #include "core/json_read.hpp"
+#include "core/output_file.hpp"
+#include "core/recorder.hpp"
 #include "core/stop_signals.hpp"
 
 namespace pinsim {
@@ -79,7 +82,8 @@ CrosscheckSpec parse_crosscheck(const Scene& scene) {
 }
 
 CrosscheckRun run_for_crosscheck(const Scene& scene_in, PluginLoader& loader,
-                                 const std::string& backend, const CrosscheckSpec& spec) {
+                                 const std::string& backend, const CrosscheckSpec& spec,
+                                 const std::filesystem::path* run_dir) {
   Scene scene = scene_in;
   const auto it = spec.params.find(backend);
   if (it != spec.params.end()) {
@@ -88,7 +92,19 @@ CrosscheckRun run_for_crosscheck(const Scene& scene_in, PluginLoader& loader,
   } else if (scene.backend.name != backend) {
     scene.backend = PluginRef{backend, "", nlohmann::json::object(), "--backends " + backend};
   }
+  if (run_dir) {
+    // The run folder's scene.json is the scene as run here: this backend and its params.
+    nlohmann::json b = {{"name", scene.backend.name}};
+    if (!scene.backend.library.empty()) b["library"] = scene.backend.library;
+    if (scene.backend.params.is_object()) b["params"] = scene.backend.params;
+    scene.doc["backend"] = b;
+  }
   Simulation sim(scene, loader);
+  std::unique_ptr<Recorder> rec;
+  if (run_dir) {
+    rec = std::make_unique<Recorder>(*run_dir, scene, /*overwrite=*/true);
+    rec->write_state(sim.state());
+  }
   CrosscheckRun run;
   run.backend = backend;
   const uint64_t steps = scene.steps();
@@ -105,12 +121,41 @@ CrosscheckRun run_for_crosscheck(const Scene& scene_in, PluginLoader& loader,
       sim.step();
       run.events.insert(run.events.end(), sim.events().begin(), sim.events().end());
       sample();
+      if (rec) {
+        rec->write_events(sim.events(), sim.step_index());
+        if (sim.step_index() % scene.output_every == 0 || n + 1 == steps)
+          rec->write_state(sim.state());
+      }
     }
+  } catch (const OutputError&) {
+    throw;
   } catch (const std::exception& e) {
     run.error = fmt::format("step {} (t = {}): {}", sim.step_index() + 1, sim.state().t, e.what());
   }
   run.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   run.steps = sim.step_index();
+  if (rec) {
+    rec->close();
+    nlohmann::json summary = {
+        {"status", !run.error.empty()    ? "error"
+                   : run.stopped_by != 0 ? "interrupted"
+                                         : "ok"},
+        {"scene", scene.label},
+        {"scene_dir", std::filesystem::absolute(scene.base_dir).string()},
+        {"name", scene.name},
+        {"backend", backend},
+        {"integrator", sim.integrator_name()},
+        {"dt", scene.dt},
+        {"duration", scene.duration},
+        {"particles", sim.state().size()},
+        {"steps", run.steps},
+        {"t_end", sim.state().t},
+        {"contacts", run.events.size()},
+        {"energy", {{"start", run.energy.front()}, {"end", run.energy.back()}}},
+        {"written_by", "crosscheck"}};
+    if (!run.error.empty()) summary["error"] = {{"message", run.error}};
+    rec->write_summary(summary);
+  }
   return run;
 }
 

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <Eigen/Core>
+#include <filesystem>
 #include <map>
 #include <nlohmann/json.hpp>
 #include <optional>
@@ -50,9 +51,14 @@ struct CrosscheckRun {
 
 /// Runs the scene on `backend` (params from spec.params, else the scene's if it names
 /// that backend, else defaults). Scene and plugin creation errors throw. A stop signal
-/// (stop_signals.hpp) ends the run after the current step (`stopped_by`).
+/// (stop_signals.hpp) ends the run after the current step (`stopped_by`). With `run_dir`,
+/// also writes the run folder `pinsim run --out` writes (trajectory.csv every
+/// output.every steps, events.csv, contacts.csv, scene.json with this backend, and a
+/// summary.json with status, backend, steps and energy), replacing an earlier one there;
+/// `pinsim render` of the folder holding the runs overlays them. Throws OutputError.
 CrosscheckRun run_for_crosscheck(const Scene& scene, PluginLoader& loader,
-                                 const std::string& backend, const CrosscheckSpec& spec);
+                                 const std::string& backend, const CrosscheckSpec& spec,
+                                 const std::filesystem::path* run_dir = nullptr);
 
 struct CrosscheckReport {
   nlohmann::json json;  ///< the full report (report.json)

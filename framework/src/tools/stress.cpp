@@ -7,12 +7,14 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <iostream>
 #include <limits>
 #include <map>
 #include <set>
 #include <sstream>
+#include <tuple>
 
 #include "core/format.hpp"
 #include "core/json_read.hpp"
@@ -319,10 +321,13 @@ void report(const sweep::Table& t, const fs::path& out) {
              cth = t.col("thickness"), cp = t.col("max_penetration"), ce = t.col("energy_drift");
   // Stability limits: per (case, backend, integrator, stiffness), sorted by dt: the last
   // h w with every smaller dt stable, and the first unstable h w.
-  std::map<std::string, std::vector<std::pair<double, const std::vector<std::string>*>>> groups;
+  // Stiffness orders as a number (100 before 400 before 1600), not as text.
+  using GroupKey = std::tuple<std::string, std::string, std::string, double, std::string>;
+  std::map<GroupKey, std::vector<std::pair<double, const std::vector<std::string>*>>> groups;
   for (const auto& r : t.rows)
     if (r[ck] == "stiffness")
-      groups[r[cc] + "|" + r[cb] + "|" + r[ci] + "|" + r[cs]].push_back({std::stod(r[cd]), &r});
+      groups[GroupKey{r[cc], r[cb], r[ci], std::strtod(r[cs].c_str(), nullptr), r[cs]}].push_back(
+          {std::stod(r[cd]), &r});
   if (!groups.empty()) {
     std::cout << "\nempirical stability limit (h w_max, w_max from the Jacobian at t = 0) vs "
                  "theory for an undamped oscillator\n"

@@ -44,6 +44,19 @@ TEST_CASE("cli: run writes output and validate accepts a good scene") {
   CHECK_THAT(r.output, Contains("ok: 1 particles"));
 }
 
+TEST_CASE("cli: the global -q and -v are taken after the subcommand too") {
+  const auto dir = test::temp_dir("cli-q-after");
+  auto r = pinsim_cli("run " + configs + "/projectile.json --out " + dir.string() + " -q");
+  CHECK(r.code == 0);
+  CHECK(r.output.empty());  // without -q: "[info] ... ok after ..."
+  r = pinsim_cli("run " + configs + "/projectile.json --out " + dir.string() + " --overwrite");
+  CHECK(r.code == 0);
+  CHECK_THAT(r.output, Contains("[info]"));
+  r = pinsim_cli("validate " + configs + "/projectile.json -v");
+  CHECK(r.code == 0);
+  CHECK_THAT(r.output, Contains("ok: 1 particles"));
+}
+
 TEST_CASE("cli: --set, --integrator and --backend reach the run") {
   const auto dir = test::temp_dir("cli-set");
   const auto r = pinsim_cli("-q run " + configs + "/projectile.json --set time.duration=0.5 " +

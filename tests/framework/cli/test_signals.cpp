@@ -1,6 +1,7 @@
-// SIGINT, SIGTERM, SIGHUP and SIGQUIT during run, bench, stress and crosscheck: each finishes
-// its current step or point, writes what is done and exits with 128 + the signal. Every test
-// waits for a progress file before signalling, so it is not a race on a loaded machine.
+// SIGINT, SIGTERM, SIGHUP, SIGQUIT and the other stop signals (kStopSignals) during run, bench,
+// stress and crosscheck: each finishes its current step or point, writes what is done and exits
+// with 128 + the signal. Every test waits for a progress file before signalling, so it is not a
+// race on a loaded machine.
 #include <signal.h>
 #include <sys/wait.h>
 
@@ -51,7 +52,8 @@ std::string oscillator_sweep(bool bench) {
 }  // namespace
 
 TEST_CASE("signals: run stops after the current step with a summary saying so") {
-  for (const int sig : {SIGINT, SIGTERM, SIGHUP, SIGQUIT}) {
+  for (const int sig :
+       {SIGINT, SIGTERM, SIGHUP, SIGQUIT, SIGPIPE, SIGUSR1, SIGUSR2, SIGALRM, SIGVTALRM, SIGXCPU}) {
     CAPTURE(sig);
     const fs::path dir = test::temp_dir("sig-run");
     const fs::path out = dir / "run";
@@ -65,10 +67,16 @@ TEST_CASE("signals: run stops after the current step with a summary saying so") 
     CHECK(test::wait_pinsim(pid) == 128 + sig);
     const auto s = nlohmann::json::parse(test::read_file(out / "summary.json"));
     const std::string name = s["signal"]["name"].get<std::string>();
-    CHECK(name == (sig == SIGINT    ? "SIGINT"
-                   : sig == SIGTERM ? "SIGTERM"
-                   : sig == SIGHUP  ? "SIGHUP"
-                                    : "SIGQUIT"));
+    CHECK(name == (sig == SIGINT      ? "SIGINT"
+                   : sig == SIGTERM   ? "SIGTERM"
+                   : sig == SIGHUP    ? "SIGHUP"
+                   : sig == SIGQUIT   ? "SIGQUIT"
+                   : sig == SIGPIPE   ? "SIGPIPE"
+                   : sig == SIGUSR1   ? "SIGUSR1"
+                   : sig == SIGUSR2   ? "SIGUSR2"
+                   : sig == SIGALRM   ? "SIGALRM"
+                   : sig == SIGVTALRM ? "SIGVTALRM"
+                                      : "SIGXCPU"));
     CHECK(s["status"] == "interrupted");
     CHECK(s["signal"]["number"] == sig);
     CHECK(s["steps"].get<long>() > 0);

@@ -166,3 +166,59 @@ TEST_CASE("events: output.events other than impacts, all, none is an error namin
                         Catch::Matchers::Contains("output.events") &&
                         Catch::Matchers::Contains("\"impacts\", \"all\" or \"none\""));
 }
+
+namespace {
+// Hits per wall of a ball in a W x H box, no gravity, restitution 1, friction 0, from the
+// unfolded straight line: along x the centre moves in a free range of length L = W - 2 r
+// (walls at -L/2 and +L/2); unfolded, u(t) = (x0 + L/2) + |vx| t grows from the left wall.
+// The wall ahead (right for vx > 0) is hit when u = L, 3 L, 5 L, ...:
+//   n_ahead = floor((u(T) / L + 1) / 2), and the wall behind at u = 2 L, 4 L, ...:
+//   n_behind = floor(u(T) / (2 L)). The same along y.
+struct WallHits {
+  long ahead, behind;
+};
+WallHits hits_1d(double x0, double v, double l, double t) {
+  const double u = (v >= 0 ? x0 : -x0) + l / 2 + std::abs(v) * t;
+  return {static_cast<long>(std::floor((u / l + 1) / 2)),
+          static_cast<long>(std::floor(u / (2 * l)))};
+}
+}  // namespace
+
+TEST_CASE("events: a ball in a box: one impact per wall hit, corners included, per backend") {
+  // A 3.1 x 1.3 box, a ball of radius 0.05 at (0.3, -0.2) with v = (6, 5.4) for 20 s (dt
+  // 1 ms). Ten of its 130 hits follow a hit on the other wall by 3.7 ms (t = 1.7, 3.7, ... 19.7 s:
+  // a periodic orbit): the ball approaches the second wall within the first touch's
+  // gap of kGapSteps steps; each is its own impact. Counts against the closed form above, per wall
+  // (the wall is the normal's direction; events.csv names the obstacle, "box", for all four).
+  const double w = 3.1, h = 1.3, r = 0.05, x0 = 0.3, y0 = -0.2, vx = 6.0, vy = 5.4, T = 20.0;
+  const WallHits hx = hits_1d(x0, vx, w - 2 * r, T), hy = hits_1d(y0, vy, h - 2 * r, T);
+  for (const std::string backend : {"sdf", "box2d"}) {
+    CAPTURE(backend);
+    std::ostringstream s;
+    s.precision(17);
+    s << R"({"time": {"dt": 1e-3, "duration": )" << T << R"(}, "backend": {"name": ")" << backend
+      << R"("}, "particles": [{"x": [)" << x0 << ", " << y0 << R"(], "v": [)" << vx << ", " << vy
+      << R"(], "radius": )" << r
+      << R"(}], "obstacles": [{"id": "box", "shape": {"type": "inside", "shape": {"type": "box",
+        "center": [0, 0], "half_size": [)"
+      << w / 2 << ", " << h / 2 << R"(]}}, "material": {"restitution": 1, "friction": 0}}],
+      "output": {"every": 1000}})";
+    const auto dir = test::temp_dir("events_box_" + backend);
+    run(parse_scene(s.str(), "box.json", "."), dir);
+    const auto ev = csv(dir / "events.csv");
+    long right = 0, left = 0, top = 0, bottom = 0;
+    for (std::size_t k = 1; k < ev.size(); ++k) {
+      const double nx = std::stod(ev[k][6]), ny = std::stod(ev[k][7]);
+      CHECK(ev[k][2] == "box");
+      if (nx < -0.9) ++right;  // the normal points from the wall into the box
+      if (nx > 0.9) ++left;
+      if (ny < -0.9) ++top;
+      if (ny > 0.9) ++bottom;
+    }
+    CHECK(right == hx.ahead);
+    CHECK(left == hx.behind);
+    CHECK(top == hy.ahead);
+    CHECK(bottom == hy.behind);
+    CHECK(ev.size() - 1 == static_cast<std::size_t>(hx.ahead + hx.behind + hy.ahead + hy.behind));
+  }
+}

@@ -269,3 +269,61 @@ TEST_CASE("interrupted run: stops cleanly with valid files") {
   CHECK(summary["steps"] == 0);
   CHECK(lines(dir / "trajectory.csv").size() == 2);  // header + the initial state
 }
+
+namespace {
+// A ball on a spring to a pinned anchor, a damped spring beside it (kd 0.2) and a box of
+// restitution 0.5 around them: nothing adds energy, so the total can only fall (up to the
+// integrator's error). `spring`: the linear spring, or the wrong_sign fixture (its force
+// flipped, its energy the right one): the rest length is then unstable, the ball runs away
+// as exp(sqrt(k/m) t) and the energy rises.
+std::string spring_scene(const std::string& spring, const std::string& extra = "") {
+  const std::string lib = spring == "wrong_sign" ? R"(, "library": ")" PINSIM_TEST_FIXTURE_DIR
+                                                   R"(/libfixture_wrong_sign.so")"
+                                                 : "";
+  const std::string params =
+      spring == "wrong_sign" ? R"({"k": 10})" : R"({"k": 10, "rest_length": 1})";
+  return R"({"time": {"dt": 0.001, "duration": 1.0}, "backend": {"name": "sdf"},
+    "particles": [{"x": [0, 0], "pinned": true}, {"x": [1, 0], "v": [0.5, 0.3], "radius": 0.05}],
+    "forces": [{"type": ")" +
+         spring + "\"" + lib + R"(, "params": )" + params + R"(, "elements": [[0, 1]]},
+               {"type": "damped_spring", "params": {"ks": 1, "kd": 0.2}, "elements": [[0, 1]]}],
+    "obstacles": [{"id": "box", "shape": {"type": "inside", "shape": {"type": "box",
+      "center": [0, 0], "half_size": [3, 3]}}, "material": {"restitution": 0.5)" +
+         extra + R"(}}], "output": {"every": 100}})";
+}
+}  // namespace
+
+TEST_CASE("run output: an energy rise with nothing that adds energy warns in the summary") {
+  PluginLoader loader(plugin_search_dirs());
+  RunSettings rs;
+  const RunResult bad =
+      run_scene(parse_scene(spring_scene("wrong_sign"), "s.json", "."), loader, rs);
+  CHECK(bad.exit_code == 0);  // a warning, not a failure
+  CHECK(bad.summary["status"] == "ok");
+  REQUIRE(bad.summary.contains("warnings"));
+  REQUIRE(bad.summary["warnings"].size() == 1);
+  CHECK(bad.summary["warnings"][0]["kind"] == "energy_rise");
+  CHECK_THAT(bad.summary["warnings"][0]["message"].get<std::string>(),
+             Catch::Matchers::Contains("the total energy rose from"));
+  const double e0 = bad.summary["energy"]["start"], e1 = bad.summary["energy"]["end"];
+  CHECK(e1 > (1 + kEnergyRiseBound) * e0);
+  // Written to summary.json too.
+  const auto dir = test::temp_dir("energy_rise");
+  rs.out = dir;
+  run_scene(parse_scene(spring_scene("wrong_sign"), "s.json", "."), loader, rs);
+  const auto on_disk = nlohmann::json::parse(test::read_file(dir / "summary.json"));
+  CHECK(on_disk["warnings"][0]["kind"] == "energy_rise");
+  rs.out.reset();
+
+  // The right spring: the energy falls (damping, restitution 0.5), no warning.
+  const RunResult good =
+      run_scene(parse_scene(spring_scene("linear_spring"), "s.json", "."), loader, rs);
+  CHECK(good.summary["energy"]["end"].get<double>() <
+        good.summary["energy"]["start"].get<double>());
+  CHECK_FALSE(good.summary.contains("warnings"));
+  // With a kicking obstacle something may add energy: the same rise is not a warning.
+  const RunResult kicked = run_scene(
+      parse_scene(spring_scene("wrong_sign", R"(, "kick": 1)"), "s.json", "."), loader, rs);
+  CHECK(kicked.summary["energy"]["end"].get<double>() > (1 + kEnergyRiseBound) * e0);
+  CHECK_FALSE(kicked.summary.contains("warnings"));
+}

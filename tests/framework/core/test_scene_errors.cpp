@@ -192,9 +192,14 @@ TEST_CASE("scene errors: a duplicate key is refused, naming its path") {
                       Contains("bad.json: particles[1].mass: duplicate key \"mass\""));
 }
 
-TEST_CASE("scene errors: a number beyond a double's range names file, line and column") {
+TEST_CASE("scene errors: a number beyond a double's range names file, line, column and path") {
   REQUIRE_THROWS_WITH(build({}, "{\"time\": {\"dt\": 0.01,\n  \"duration\": 1e400}}"),
-                      Contains("bad.json:2:15") && Contains("number 1e400 is out of range"));
+                      Contains("bad.json:2:15: time.duration: number 1e400 is out of range"));
+  // In an array: the entry being read, not the one before it.
+  REQUIRE_THROWS_WITH(build({}, R"({"time": {"dt": 0.01, "duration": 1},
+    "particles": [{"x": [0, 0]}, {"x": [1, -1e999]}]})"),
+                      Contains("bad.json:2:44: particles[1].x[1]: number -1e999 is out of range"));
+  REQUIRE_THROWS_WITH(build({}, "[1e999]"), Contains("bad.json:1:2: [0]: number 1e999"));
   REQUIRE_THROWS_WITH(build({"time.dt=1e999"}),
                       Contains("--set time.dt=") && Contains("number 1e999 is out of range"));
 }

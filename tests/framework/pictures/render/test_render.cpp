@@ -217,6 +217,43 @@ TEST_CASE("render: a folder of runs (a crosscheck) overlays both paths") {
   CHECK(png.is_blue(px(b.x), py(b.y)));
 }
 
+TEST_CASE("render: crosscheck --out writes a run folder per backend; render overlays them") {
+  const fs::path report = test::temp_dir("render-crosscheck");
+  auto r = pinsim_cli("-q crosscheck " + kScene + " --backends sdf,box2d --out " + report.string());
+  REQUIRE((r.code == 0 || r.code == 1));  // 1: a tolerance failed; the folders are written
+  CHECK(fs::exists(report / "report.json"));
+  for (const char* b : {"sdf", "box2d"}) {
+    CAPTURE(b);
+    const auto s = nlohmann::json::parse(test::read_file(report / b / "summary.json"));
+    CHECK(s["backend"] == b);
+    CHECK(s["status"] == "ok");
+    CHECK(s["steps"] == 1000);
+    const auto scene = nlohmann::json::parse(test::read_file(report / b / "scene.json"));
+    CHECK(scene["backend"]["name"] == b);
+    CHECK(fs::exists(report / b / "events.csv"));
+  }
+  const fs::path out = report / "overlay.png";
+  r = pinsim_cli("-q render " + report.string() + " " + kView + " --out " + out.string());
+  REQUIRE(r.code == 0);
+  Png png(out);
+  REQUIRE(png.ok());
+  // Each run's final position, in its colour (subfolders in name order: box2d, then sdf).
+  const auto a = load_run(report / "box2d").particles.at(0).back();
+  const auto b = load_run(report / "sdf").particles.at(0).back();
+  CHECK(load_run(report / "sdf").particles.at(0).size() == 101);  // t = 0, 0.01, ..., 1
+  CHECK(png.is_red(px(a.x), py(a.y)));
+  CHECK(png.is_blue(px(b.x), py(b.y)));
+}
+
+TEST_CASE("render: a missing run folder is named as such, not as a scene file") {
+  const fs::path gone = test::temp_dir("render-missing") / "no_such_run";
+  const auto r = pinsim_cli("render " + gone.string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output,
+             Catch::Matchers::Contains(gone.string() + ": no such run folder or scene file"));
+  CHECK_THAT(r.output, !Catch::Matchers::Contains("scene file not found"));
+}
+
 TEST_CASE("render: bad input is one error line") {
   const auto r = pinsim_cli("render " + kScene + " --out /tmp/x.jpg");
   CHECK(r.code == 2);

@@ -228,6 +228,19 @@ TEST_CASE("stress: spring and bending stability limits bracket theory") {
       CHECK(l.first_unstable >= theory * (1 - 1e-4));
     }
   }
+  // The stability table lists the stiffnesses of a case and integrator in numeric order
+  // (100, 400, 1600; as text 1600 would come first).
+  {
+    std::vector<std::string> order;
+    std::istringstream lines(r.output);
+    for (std::string l; std::getline(lines, l);) {
+      std::istringstream f(l);
+      std::string c, b, integ, k;
+      if (f >> c >> b >> integ >> k && c == "spring" && integ == "symplectic_euler")
+        order.push_back(k);
+    }
+    CHECK(order == std::vector<std::string>{"100", "400", "1600"});
+  }
   // One heat map per case and integrator: class over (dt, stiffness).
   for (const char* map : {"heat_spring_symplectic_euler.svg", "heat_bending_rk4.svg"}) {
     INFO(map);
