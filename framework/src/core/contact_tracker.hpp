@@ -30,8 +30,7 @@ struct ContactSpan {
 /// steps before, with a normal within kMaxTurnCos (cos 30 degrees) of this impulse's. A
 /// touch ends when kGapSteps steps pass without an impulse continuing it.
 /// The gap: a ball sliding along a curved wall with restitution bounces off by a fraction
-/// of the backend's rest speed and is back one to three steps later (the pinball ball:
-/// 298 of its 335 impulses follow the pair's previous one by 1-4 steps, the next gap is 10).
+/// of the backend's rest speed and is back one to a few steps later.
 /// The normal: one obstacle may have several faces (a box, a polygon). A ball that hits
 /// one face and, a few steps later, another face of the same obstacle approaches a new
 /// surface: two impacts, two touches. Along a smooth wall the normal turns by the distance
