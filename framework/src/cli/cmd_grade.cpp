@@ -86,10 +86,8 @@ int grade_one(const GradeArgs& a) {
     std::cerr << "pinsim grade: " << r.write_error << "\n";
     return 2;
   }
-  std::cout << r.results["output"].get<std::string>();
-  if (!std::string(r.results["output"].get<std::string>()).empty() &&
-      r.results["output"].get<std::string>().back() != '\n')
-    std::cout << "\n";
+  // What summary.txt says: the score, each test, and the failed tests' outputs.
+  std::cout << grading::summary_text(r.results, rubric.name);
   std::cout.flush();
   spdlog::info("results written to {}", (fs::path(a.out) / "results.json").string());
   if (r.stopped_by != 0) {

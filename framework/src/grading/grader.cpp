@@ -189,7 +189,7 @@ class Grading {
                       ? "Grading did not finish: the grader " + how + " after test " +
                             std::to_string(tests_.size()) + " of " +
                             std::to_string(rubric_.tests.size()) + ". Please tell the course staff."
-                      : grading::summary_text(r, rubric_.name);
+                      : grading::summary_text(r, rubric_.name, false);
     return r;
   }
 
@@ -210,6 +210,11 @@ class Grading {
 }  // namespace
 
 GradeReport grade_submission(const Rubric& rubric, const GradeOptions& opt) {
+  double total = 0.0;
+  for (const auto& t : rubric.tests) total += t.points;
+  const auto failed = [total](const std::string& why) {
+    return grading::failed_results(why, total);
+  };
   GradeReport report;
   std::error_code ec;
   fs::create_directories(opt.out, ec);
@@ -217,28 +222,26 @@ GradeReport grade_submission(const Rubric& rubric, const GradeOptions& opt) {
     report.refused = true;
     report.write_error = "cannot make the output folder " + opt.out.string() + ": " +
                          (ec ? ec.message() : "a file of that name is in the way");
-    report.results = grading::failed_results(report.write_error);
+    report.results = failed(report.write_error);
     return report;
   }
   try {
-    grading::write_results(
-        opt.out,
-        grading::failed_results("Grading started but did not finish. Please tell the "
-                                "course staff."),
-        rubric.name);
+    grading::write_results(opt.out,
+                           failed("Grading started but did not finish. Please tell the "
+                                  "course staff."),
+                           rubric.name);
     const std::string exposed = grading::sandbox_mode() == grading::SandboxMode::Fallback
                                     ? grading::exposed_private_paths(rubric, opt.out)
                                     : "";
     if (!grading::unsafe_no_sandbox() && !grading::sandbox_unavailable().empty()) {
       report.refused = true;
-      report.results = grading::failed_results(
-          "The autograder cannot isolate submissions on this machine (" +
-          grading::sandbox_unavailable() +
-          "), so it refuses to grade. Course staff: fix the sandbox, or pass "
-          "--unsafe-no-sandbox to grade without isolation.");
+      report.results = failed("The autograder cannot isolate submissions on this machine (" +
+                              grading::sandbox_unavailable() +
+                              "), so it refuses to grade. Course staff: fix the sandbox, or pass "
+                              "--unsafe-no-sandbox to grade without isolation.");
     } else if (!exposed.empty()) {
       report.refused = true;
-      report.results = grading::failed_results(
+      report.results = failed(
           "The autograder refuses to grade: in its fallback sandbox the submission could "
           "reach " +
           exposed +
@@ -252,9 +255,9 @@ GradeReport grade_submission(const Rubric& rubric, const GradeOptions& opt) {
     }
   } catch (const std::exception& e) {
     report.refused = true;
-    report.results = grading::failed_results(
-        std::string("The autograder failed (its own error, not your submission's): ") + e.what() +
-        ". Please tell the course staff.");
+    report.results =
+        failed(std::string("The autograder failed (its own error, not your submission's): ") +
+               e.what() + ". Please tell the course staff.");
   }
   try {
     grading::write_results(opt.out, report.results, rubric.name);

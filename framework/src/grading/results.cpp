@@ -102,18 +102,26 @@ std::string junit_xml(const nlohmann::json& results, const std::string& suite) {
   return x.str();
 }
 
-std::string summary_text(const nlohmann::json& results, const std::string& rubric_name) {
+std::string summary_text(const nlohmann::json& results, const std::string& rubric_name,
+                         bool with_outputs) {
   std::ostringstream s;
   int passed = 0;
   for (const auto& t : results["tests"]) passed += str(t, "status") == "passed";
   s << sanitize_text(rubric_name) << ": " << num(number(results, "score")) << " / "
     << num(number(results, "max_score")) << " points, " << passed << " of "
     << results["tests"].size() << " tests passed\n";
+  // The top-level output when it says more than this summary does (why grading was refused
+  // or did not finish): the summary file and the terminal show it too.
+  if (with_outputs) {
+    const std::string top = str(results, "output");
+    if (!top.empty() && top != summary_text(results, rubric_name, false))
+      s << sanitize_text(top) << (top.back() == '\n' ? "" : "\n");
+  }
   for (const auto& t : results["tests"]) {
     s << "  [" << (str(t, "status") == "passed" ? "pass" : "FAIL") << "] " << str(t, "number")
       << ". " << sanitize_text(str(t, "name")) << " (" << num(number(t, "score")) << "/"
       << num(number(t, "max_score")) << ")\n";
-    if (str(t, "status") != "passed") {
+    if (with_outputs && str(t, "status") != "passed") {
       std::istringstream lines(sanitize_text(str(t, "output")));
       for (std::string l; std::getline(lines, l);) s << "        " << l << "\n";
     }
@@ -129,9 +137,9 @@ void write_results(const fs::path& dir, const nlohmann::json& results, const std
   write_atomically(dir / "summary.txt", summary_text(results, name));
 }
 
-nlohmann::json failed_results(const std::string& reason) {
+nlohmann::json failed_results(const std::string& reason, double max_score) {
   return {{"score", 0.0},
-          {"max_score", 0.0},
+          {"max_score", max_score},
           {"execution_time", 0.0},
           {"output", sanitize_text(reason)},
           {"visibility", "visible"},

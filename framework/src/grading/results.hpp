@@ -17,14 +17,18 @@ void write_atomically(const std::filesystem::path& file, const std::string& text
 std::string junit_xml(const nlohmann::json& results, const std::string& suite);
 
 /// The readable summary: score, then one line per test, failed tests with their output.
-std::string summary_text(const nlohmann::json& results, const std::string& rubric_name);
+/// With `with_outputs` false, only the score line and one line per test: results.json's
+/// top-level output, which must not repeat what every test already shows.
+std::string summary_text(const nlohmann::json& results, const std::string& rubric_name,
+                         bool with_outputs = true);
 
 /// Writes results.json, junit.xml and summary.txt into `dir`, atomically each.
 void write_results(const std::filesystem::path& dir, const nlohmann::json& results,
                    const std::string& rubric_name);
 
-/// A results object with score 0 and `reason` as its output: for the grader's own failures.
-nlohmann::json failed_results(const std::string& reason);
+/// A results object with score 0 out of `max_score` (the rubric's total, so a course sees
+/// 0 / N rather than 0 / 0) and `reason` as its output: for the grader's own failures.
+nlohmann::json failed_results(const std::string& reason, double max_score = 0.0);
 
 /// results.json's extra_data: {"sandbox": {"mode": "bubblewrap"|"fallback"|"none",
 /// "detail": one line}}, what isolated the submission's code.
