@@ -26,12 +26,12 @@ class MyAnchor {
 
   /// Reads the (validated) parameters and the element list; throw pinsim::Error on bad input.
   explicit MyAnchor(const pinsim::CreateContext& ctx)
-      : k_(ctx.params.real("k")), c_(ctx.params.real("c")), anchor_(ctx.params.vec2("anchor")) {
-    particles_.assign(ctx.elements.data, ctx.elements.data + ctx.elements.count);
-    for (uint32_t p : particles_)
-      if (p >= ctx.initial.n)
-        throw pinsim::Error(ctx.context + ": particle " + std::to_string(p) + " out of range");
-  }
+      : k_(ctx.params.real("k")),
+        c_(ctx.params.real("c")),
+        anchor_(ctx.params.vec2("anchor")),
+        // One particle per element; throws, naming the scene entry, on a wrong arity or an
+        // index out of range.
+        particles_(pinsim::element_indices(ctx, 1)) {}
 
   /// f += force. s.x and s.v are 2xN (one column per particle).
   void add_force(const pinsim::StateView& s, pinsim::ForceOut& f) const {

@@ -101,7 +101,8 @@ void add_render_command(CLI::App& app) {
   c->add_option("--time,-t", a->time, "Time to draw, s (default: 0 for a scene, the run's end)");
   c->add_option("--width,-w", a->width, "Picture width, pixels")->check(CLI::Range(64, 8192));
   c->add_option("--view", a->view, "World rectangle x0,y0,x1,y1 (default: fit everything)");
-  c->add_flag("--no-field", a->no_field, "Do not shade the distance field");
+  c->add_flag("--no-field", a->no_field,
+              "Do not shade the distance field (the obstacles are still drawn, filled)");
   c->add_flag("--no-trajectories", a->no_trajectories, "Do not draw the paths");
   c->add_flag("--no-contacts", a->no_contacts, "Do not mark contacts");
   c->callback([a] { throw CLI::RuntimeError(render_command(*a)); });

@@ -171,7 +171,10 @@ std::string format_param_table(const pinsim_plugin& plugin) {
                (p.flags & PINSIM_PARAM_MAX_EXCLUSIVE ? "< " : "<= ") + num(p.max);
     if (p.choices) range = std::string("one of ") + p.choices;
     if (!range.empty()) o << "  range " << range;
-    o << "  [" << p.units << "]  " << p.doc << "\n";
+    // Units belong to quantities: a boolean or a string (a choice, a name) has none.
+    const bool quantity = p.type != PINSIM_PARAM_BOOL && p.type != PINSIM_PARAM_STRING;
+    if (quantity && p.units) o << "  [" << p.units << "]";
+    o << "  " << p.doc << "\n";
   }
   return o.str();
 }

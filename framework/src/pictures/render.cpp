@@ -116,13 +116,17 @@ Surface create_surface(const fs::path& out, bool svg, const PixelMap& map, std::
   return surface;
 }
 
-// Obstacles: the backend's distance field at time t, shaded with contour lines (sampled
-// twice as finely for SVG).
-void draw_obstacles(cairo_t* cr, const Simulation& sim, const PixelMap& map, double t, bool svg) {
+// Obstacles: the backend's distance field at time t (sampled twice as finely for SVG),
+// shaded with contour lines, or (without the field) only the obstacles filled and outlined.
+void draw_obstacles(cairo_t* cr, const Simulation& sim, const PixelMap& map, double t, bool svg,
+                    bool field) {
   const BackendInstance& be = sim.backend();
   const FieldGrid g = sample_field(
       [&](double x, double y) { return be.distance(x, y, t, nullptr); }, map, svg ? 2 : 1);
-  draw_field(cr, map, g, contour_spacing(map.view));
+  if (field)
+    draw_field(cr, map, g, contour_spacing(map.view));
+  else
+    draw_solid(cr, g, 0.22, 0.25, 0.30);
 }
 
 // Springs and strands: the scene's pair and triple elements, between current positions.
@@ -294,7 +298,7 @@ PixelMap render_picture(const RenderJob& job, PluginLoader& loader, const Render
   cairo_t* cr = ctx.get();
   cairo_set_source_rgb(cr, 0.97, 0.95, 0.90);
   cairo_paint(cr);
-  if (opt.field && sim && sim->backend().has_distance()) draw_obstacles(cr, *sim, map, t, svg);
+  if (sim && sim->backend().has_distance()) draw_obstacles(cr, *sim, map, t, svg, opt.field);
   if (sim) draw_springs(cr, *sim, particles);
   if (opt.trajectories) draw_trajectories(cr, job, map, t);
   if (opt.contacts) draw_contacts(cr, job, map, t);

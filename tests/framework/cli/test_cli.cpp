@@ -4,6 +4,8 @@
 #include <catch2/catch.hpp>
 #include <cstdio>
 #include <nlohmann/json.hpp>
+#include <sstream>
+#include <string>
 
 #include "test_support.hpp"
 
@@ -31,6 +33,33 @@ TEST_CASE("cli: plugins lists the in-tree plugins and shows a parameter table") 
   r = pinsim_cli("plugins gravity");
   CHECK(r.code == 0);
   CHECK_THAT(r.output, Contains("parameters:") && Contains("m/s^2") && Contains("[0.0,-9.81]"));
+}
+
+TEST_CASE("cli: plugins gives units to quantities only") {
+  // gravity's "mode" is a string choice: no units; its "g" is an acceleration in m/s^2.
+  const auto r = pinsim_cli("plugins gravity");
+  REQUIRE(r.code == 0);
+  std::string mode_line;
+  std::istringstream lines(r.output);
+  for (std::string l; std::getline(lines, l);)
+    if (l.find(" mode ") != std::string::npos) mode_line = l;
+  INFO(r.output);
+  REQUIRE_THAT(mode_line, Contains("one of uniform|pairwise"));
+  CHECK(mode_line.find('[') == std::string::npos);
+  CHECK_THAT(r.output, Contains("[m/s^2]"));
+}
+
+TEST_CASE("cli: plugins --plugin-path lists and loads a plugin from that folder") {
+  // The fixture folder holds libpinsim_plugin_ring_area_pairs.so, on no default search path.
+  auto r = pinsim_cli("plugins ring_area_pairs");
+  CHECK(r.code == 2);
+  r = pinsim_cli(std::string("plugins ring_area_pairs --plugin-path ") + PINSIM_TEST_FIXTURE_DIR);
+  INFO(r.output);
+  CHECK(r.code == 0);
+  CHECK_THAT(r.output, Contains("parameters:"));
+  r = pinsim_cli(std::string("plugins --plugin-path ") + PINSIM_TEST_FIXTURE_DIR);
+  CHECK(r.code == 0);
+  CHECK_THAT(r.output, Contains("ring_area_pairs") && Contains(PINSIM_TEST_FIXTURE_DIR));
 }
 
 TEST_CASE("cli: run writes output and validate accepts a good scene") {

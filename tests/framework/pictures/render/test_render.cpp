@@ -104,6 +104,27 @@ TEST_CASE("render: a scene as PNG shows the obstacles, the field and the ball") 
   CHECK(rim[0] < 80);
 }
 
+TEST_CASE("render --no-field: the obstacles are drawn, the field around them is not") {
+  const fs::path dir = test::temp_dir("render-nofield");
+  const auto r = pinsim_cli("-q render " + kScene + " " + kView + " --out " +
+                            (dir / "solid.png").string() + " --no-field");
+  REQUIRE(r.code == 0);
+  REQUIRE(pinsim_cli("-q render " + kScene + " " + kView + " --out " + (dir / "field.png").string())
+              .code == 0);
+  Png solid(dir / "solid.png"), field(dir / "field.png");
+  REQUIRE(solid.ok());
+  REQUIRE(field.ok());
+  CHECK(solid.is_dark(px(0.5), py(0.3)));  // the disc's centre: the obstacle is there
+  // Just outside the disc's rim (radius 0.15) the field is shaded; without it the pixel
+  // is the plain background, as in free space far from every wall.
+  const int x = px(0.5), y = py(0.3 + 0.15 + 0.04);
+  const auto background = solid.rgb(px(0.8), py(0.75));
+  CHECK(solid.is_light(px(0.8), py(0.75)));
+  CHECK(solid.rgb(x, y) == background);
+  CHECK(field.rgb(x, y) != field.rgb(px(0.8), py(0.75)));
+  CHECK(solid.is_red(px(0.2), py(0.8)));  // the ball at t = 0
+}
+
 TEST_CASE("render: a backend without outlines still draws its field; the view fits the particles") {
   const fs::path dir = test::temp_dir("render-no-outline");
   test::write_file(dir / "scene.json", R"({"plugin_path": [")" PINSIM_TEST_FIXTURE_DIR R"("],
