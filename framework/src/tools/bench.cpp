@@ -26,6 +26,8 @@ namespace pinsim::bench {
 namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
+// Errors at or below this are rounding, not truncation: they carry no convergence order.
+constexpr double kRoundingError = 1e-13;
 
 /// One point of the sweep.
 struct Point {
@@ -307,19 +309,30 @@ void report(const sweep::Table& t, const fs::path& out) {
   std::cout << "\nobserved convergence order (least-squares slope of log error vs log dt)\n";
   std::cout << fmt::format("{:<22} {:<34} {:>12} {:>12} {:>14}\n", "case", "integrator / backend",
                            "order(max)", "order(final)", "best err_max");
+  bool any_exact = false, any_short = false;
   for (auto& [cname, ss] : series) {
     for (auto& [sname, pts] : ss) {
       std::vector<double> dt, ef, em;
       double best = kInf;
       for (const auto& p : pts) {
         dt.push_back(p[0]);
-        // errors at rounding level carry no order information
-        ef.push_back(p[1] > 1e-13 ? p[1] : std::nan(""));
-        em.push_back(p[2] > 1e-13 ? p[2] : std::nan(""));
+        // Errors at rounding level carry no order information.
+        ef.push_back(p[1] > kRoundingError ? p[1] : std::nan(""));
+        em.push_back(p[2] > kRoundingError ? p[2] : std::nan(""));
         best = std::min(best, p[2]);
       }
-      std::cout << fmt::format("{:<22} {:<34} {:>12.3f} {:>12.3f} {:>14.3e}\n", cname, sname,
-                               sweep::loglog_slope(dt, em), sweep::loglog_slope(dt, ef), best);
+      // An order needs two dt with errors above rounding level: "exact" when every error is
+      // at rounding level (the method integrates this case exactly), "-" when fewer than two
+      // dt were run.
+      const auto order = [&](const std::vector<double>& e) {
+        const double slope = sweep::loglog_slope(dt, e);
+        if (std::isfinite(slope)) return fmt::format("{:.3f}", slope);
+        const bool exact = std::none_of(e.begin(), e.end(), [](double x) { return x == x; });
+        (exact && dt.size() >= 2 ? any_exact : any_short) = true;
+        return std::string(exact && dt.size() >= 2 ? "exact" : "-");
+      };
+      std::cout << fmt::format("{:<22} {:<34} {:>12} {:>12} {:>14.3e}\n", cname, sname, order(em),
+                               order(ef), best);
     }
     // Work-precision figure: error on x, median time on y, log-log.
     const fs::path script = out / ("work_precision_" + cname + ".gp");
@@ -347,6 +360,10 @@ void report(const sweep::Table& t, const fs::path& out) {
     if (sweep::run_gnuplot(script))
       spdlog::info("figure: {}", (out / ("work_precision_" + cname + ".svg")).string());
   }
+  if (any_exact)
+    std::cout << "exact: the error is at rounding level (<= " << num(kRoundingError)
+              << ") at every dt: the method is exact for this case, so it has no order\n";
+  if (any_short) std::cout << "-: fewer than two dt with errors above rounding level\n";
 }
 
 }  // namespace pinsim::bench

@@ -95,6 +95,38 @@ TEST_CASE("bench: CSV, observed orders within 0.15 of theory, work-precision plo
   CHECK_THAT(text, Catch::Contains("velocity_verlet / none"));  // names drawn as written
 }
 
+TEST_CASE("bench: an integrator exact for a case is listed as exact, not as nan") {
+  // Under constant gravity velocity Verlet is exact: x_{n+1} = x_n + v_n dt + g dt^2 / 2 is
+  // the Taylor series of x(t) = x0 + v0 t + g t^2 / 2 to its last term, so its error is
+  // rounding at every dt. Symplectic Euler is first order: x(T) error = g T dt / 2.
+  const fs::path dir = pinsim::test::temp_dir("bench-exact");
+  pinsim::test::write_file(dir / "proj.json", R"({
+    "repeats": 1, "integrators": ["symplectic_euler", "velocity_verlet"],
+    "cases": [{"name": "toss",
+      "scene": {"time": {"dt": 0.01, "duration": 0.25},
+                "particles": [{"x": [0, 0], "v": [0.5, 1.0]}],
+                "forces": [{"type": "gravity", "params": {"g": [0.0, -2.0]}}]},
+      "answer": {"type": "projectile", "particle": 0, "g": [0.0, -2.0]},
+      "dt": [0.01, 0.005, 0.0025]}]})");
+  const auto r =
+      pinsim_cli("-q bench " + (dir / "proj.json").string() + " --out " + (dir / "out").string());
+  INFO(r.output);
+  REQUIRE(r.code == 0);
+  CHECK(r.output.find("nan") == std::string::npos);
+  std::string verlet, euler;
+  std::istringstream lines(r.output);
+  for (std::string l; std::getline(lines, l);) {
+    if (l.rfind("toss ", 0) != 0) continue;
+    (l.find("velocity_verlet") != std::string::npos ? verlet : euler) = l;
+  }
+  CHECK_THAT(verlet, Catch::Contains("exact"));
+  std::istringstream e(euler.substr(euler.find("/ none") + 6));
+  double order_max = 0;
+  e >> order_max;
+  CHECK(std::abs(order_max - 1.0) <= 0.15);
+  CHECK_THAT(r.output, Catch::Contains("exact: the error is at rounding level"));
+}
+
 TEST_CASE("bench --shard i/N and merge reproduce the unsharded errors") {
   const fs::path dir = pinsim::test::temp_dir("bench-shards");
   pinsim::test::write_file(dir / "osc.json", kBench);
