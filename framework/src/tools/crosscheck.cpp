@@ -23,8 +23,18 @@ double angle_between(const double* a, const double* b) {
   return std::abs(std::atan2(s, c));
 }
 
+// A contact the backend reported before resolving it within its step: its outgoing normal
+// speed is still the incoming one (box2d closes a contact so when another contact of the
+// same particle begins in the same step). It has no restitution of its own.
+bool unresolved(const pinsim_event& e) { return e.vn_before < 0.0 && e.vn_after == e.vn_before; }
+
+// The restitution achieved, -vn_after / vn_before; NaN where there is none.
+double achieved_restitution(const pinsim_event& e) {
+  return e.vn_before < 0.0 && !unresolved(e) ? -e.vn_after / e.vn_before : std::nan("");
+}
+
 nlohmann::json event_json(const Scene& scene, const pinsim_event& e) {
-  const double e_ach = e.vn_before < 0.0 ? -e.vn_after / e.vn_before : std::nan("");
+  const double e_ach = achieved_restitution(e);
   return {{"t", e.t},
           {"obstacle",
            e.obstacle >= 0 ? scene.obstacle_id(e.obstacle) : fmt::format("particle {}", e.other)},
@@ -325,9 +335,12 @@ std::string contact_cell(const Scene& scene, const std::optional<pinsim_event>& 
   if (!e) return fmt::format("{:<14} {:>9} {:>17} {:>6}", "-", "", "", "");
   const std::string id =
       e->obstacle >= 0 ? scene.obstacle_id(e->obstacle) : fmt::format("p{}", e->other);
-  const double er = e->vn_before < 0.0 ? -e->vn_after / e->vn_before : 0.0;
-  return fmt::format("{:<14.14} {:>9.5f} ({:>7.4f},{:>7.4f}) {:>6.3f}", id, e->t, e->normal[0],
-                     e->normal[1], er);
+  const double er = achieved_restitution(*e);
+  const std::string e_text = std::isfinite(er) ? fmt::format("{:.3f}", er)
+                             : unresolved(*e)  ? std::string("open")
+                                               : std::string("-");
+  return fmt::format("{:<14.14} {:>9.5f} ({:>7.4f},{:>7.4f}) {:>6}", id, e->t, e->normal[0],
+                     e->normal[1], e_text);
 }
 
 // Particle pc's contact table: counts, a header and the first 40 pairs.
@@ -345,6 +358,15 @@ void format_contacts(const Scene& scene, const CrosscheckRun& a, const Crosschec
   }
   if (pc.pairs.size() > kRowsShown) tab << "  ... (all contacts are in report.json)\n";
 }
+
+// What the contact tables' e column means, and why it can differ from the material's.
+constexpr const char* kContactLegend =
+    "\n  e = -vn_after / vn_before, the normal speed relative to the obstacle's surface, out over\n"
+    "  in. 'open': the backend reported the contact but had not resolved it when the step\n"
+    "  ended it (box2d: another contact of the same particle began in that step); its\n"
+    "  restitution is null in report.json. When one step holds several contacts of a particle\n"
+    "  (a ball rolling along box2d's segments of a curved wall), Box2D solves them together,\n"
+    "  so one contact's e can exceed the material's restitution; a bumper's kick raises e too.\n";
 
 // The readable summary: stopped runs, per particle its deviation row and contact table,
 // the energies, the verdict and the failures.
@@ -365,6 +387,7 @@ std::string format_table(const Scene& scene, const CrosscheckSpec& spec, const C
                        d.horizon, d.held ? " (whole run)" : "");
     format_contacts(scene, a, b, pc, tab);
   }
+  if (!a.events.empty() || !b.events.empty()) tab << kContactLegend;
   tab << "\n  energy (kinetic + potential):\n";
   for (const EnergySummary& es : energies)
     tab << fmt::format(

@@ -120,6 +120,33 @@ TEST_CASE("cli: --backend box2d on the pinball table uses the scene's crosscheck
   CHECK(ran["backend"]["params"]["rest_speed"] == 0.005);  // the rest from crosscheck.params
 }
 
+TEST_CASE("cli: crosscheck's contact table explains e; an unresolved contact is open, not -1") {
+  // On the pinball table the ball rolls along box2d's segments of the round top: a contact
+  // ended by the next one in the same step keeps vn_after = vn_before, so e = -vn_after /
+  // vn_before would read -1. It is shown as 'open' with null restitution in report.json.
+  const auto dir = test::temp_dir("cli-crosscheck-e");
+  const auto r = pinsim_cli("crosscheck " + configs + "/pinball.json --out " + dir.string());
+  INFO(r.output);
+  const auto report = nlohmann::json::parse(test::read_file(dir / "report.json"));
+  int open = 0;
+  for (const auto& p : report["particles"])
+    for (const auto& c : p["contacts"])
+      for (const char* b : {"sdf", "box2d"}) {
+        if (!c.contains(b) || c[b].is_null()) continue;
+        const auto& e = c[b];
+        if (e["vn_before"].get<double>() < 0 && e["vn_after"] == e["vn_before"]) {
+          ++open;
+          CHECK(e["restitution"].is_null());
+        } else if (!e["restitution"].is_null()) {
+          CHECK(e["restitution"].get<double>() >= 0.0);
+        }
+      }
+  CHECK(open > 0);
+  const std::string table = test::read_file(dir / "report.txt");
+  CHECK_THAT(table, Contains("   open |") && Contains("e = -vn_after / vn_before"));
+  CHECK(table.find("-1.000 |") == std::string::npos);
+}
+
 TEST_CASE("cli: bad input gives one error line and a non-zero exit") {
   const auto dir = test::temp_dir("cli-bad");
   test::write_file(dir / "broken.json", "{ \"time\": ");
