@@ -1,5 +1,5 @@
-"""Checks the project's front page and guides: every relative link in README.md and docs/*.md
-points to a file or folder that exists (and, for `file.md#anchor`, to a heading of that file),
+"""Checks the project's front page and guides: every relative link in README.md, docs/*.md and
+every folder's README.md (plugins, backends, sdk, tests, ...) points to a file or folder that exists (and, for `file.md#anchor`, to a heading of that file),
 and README.md stays under a word limit.
 
 Usage: check_docs.py SOURCE_DIR [--max-words N]   exit 0 when all holds, 1 otherwise (each
@@ -19,6 +19,7 @@ LINK = re.compile(r"!?\[(?:[^\]\[]|\[[^\]]*\])*\]\(\s*<?([^)\s>]+)>?(?:\s+\"[^\"
 HTML_SRC = re.compile(r"<(?:img|a)\b[^>]*?\b(?:src|href)=\"([^\"]+)\"", re.IGNORECASE)
 HEADING = re.compile(r"^(#{1,6})\s+(.*?)\s*#*\s*$")
 FENCE = re.compile(r"^\s*(```|~~~)")
+SKIP_DIRS = {"build", "node_modules", "out"}  # build trees, npm packages, run output
 
 
 def prose_lines(text):
@@ -85,6 +86,10 @@ def check(root, max_words):
     docs = os.path.join(root, "docs")
     if os.path.isdir(docs):
         files += sorted(os.path.join(docs, n) for n in os.listdir(docs) if n.endswith(".md"))
+    for top, dirs, names in os.walk(root):
+        dirs[:] = sorted(d for d in dirs if not d.startswith(".") and d not in SKIP_DIRS)
+        if top != root and "README.md" in names:
+            files.append(os.path.join(top, "README.md"))
     for path in files:
         if os.path.isfile(path):
             check_links(path, root, failures)
@@ -108,6 +113,8 @@ def self_test():
             with open(os.path.join(root, name), "w", encoding="utf-8") as f:
                 f.write(text)
 
+        os.makedirs(os.path.join(root, "plugins", "p"))
+        write("plugins/p/README.md", "[up](../../README.md)\n")
         write("docs/guide.md", "# A guide\n## `pinsim share [SCENE] [--out game.html]`\n"
               "Back to [the front page](../README.md).\n```\n[in code](nowhere.md)\n```\n")
         write("README.md", "# x\nSee [the guide](docs/guide.md#pinsim-share-scene---out-gamehtml)"
@@ -117,6 +124,7 @@ def self_test():
             "a missing file": ("README.md", "[gone](docs/gone.md)\n", "docs/gone.md does not exist"),
             "a missing anchor": ("docs/guide.md", "[a](guide.md#no-such)\n", "no heading #no-such"),
             "a missing image": ("README.md", "<img src=\"docs/pictures/x.png\">\n", "does not exist"),
+            "a folder's README": ("plugins/p/README.md", "[x](../q/README.md)\n", "does not exist"),
             "a long README": ("README.md", "word " * 1300 + "\n", "the limit is under 1300"),
         }
         errors = [] if not ok else [f"a correct tree fails: {ok}"]
@@ -145,8 +153,8 @@ def main(argv):
     for f in failures:
         print(f)
     if not failures:
-        print("README.md and docs/*.md: every relative link resolves; README.md under",
-              max_words, "words")
+        print("README.md, docs/*.md and every folder's README.md: every relative link resolves;",
+              "README.md under", max_words, "words")
     return 1 if failures else 0
 
 
