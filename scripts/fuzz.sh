@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer programs of the `asan` preset (clang, ASan + UBSan; the `fuzz` build
 # preset is those targets of build/asan) and fuzzes each target for a fixed time from a fixed
-# seed, starting from the seed corpus (tests/fuzz/corpus/TARGET, the regressions in
-# tests/fuzz/regressions/TARGET and the shipped configs). See docs/fuzzing.md.
+# seed, as many targets at once as there are cores, starting from the seed corpus
+# (tests/fuzz/corpus/TARGET, the regressions in tests/fuzz/regressions/TARGET and the shipped
+# configs). See docs/fuzzing.md.
 #   scripts/fuzz.sh [--time SECONDS_PER_TARGET] [--corpus DIR] [--seed N] [TARGET...]
 # --corpus DIR keeps what the fuzzer learns in DIR/TARGET between runs (default: a fresh
 # temporary folder, so CI's run is reproducible). A crash, hang, leak or sanitizer report
@@ -46,19 +47,38 @@ seeds() {
 # Longest input: the largest shipped config is ~13 KB; PATH=VALUE lines are short.
 max_len() { [ "$1" = set ] && echo 1024 || echo 16384; }
 
-failed=()
-for t in "${targets[@]}"; do
-  mkdir -p "$corpus/$t" "build/asan/findings/$t"
-  dirs=("$corpus/$t")
+# One fuzzer per core at a time (each is one process on one core), so a target gets its
+# seconds of a core whatever the number of cores.
+fuzz_one() {
+  local t=$1 d rc=0 dirs=("$corpus/$1")
   for d in "tests/fuzz/corpus/$t" "tests/fuzz/regressions/$t" $(seeds "$t"); do
     [ -d "$d" ] && dirs+=("$d")
   done
-  echo "fuzz: $t for ${seconds}s (seed $seed)"
   # -timeout: seconds per input (a hang); -rss_limit_mb: the memory an input may take.
-  if ! ASAN_OPTIONS="${ASAN_OPTIONS:-}:detect_leaks=1" build/asan/tests/fuzz/fuzz_"$t" \
-      -seed="$seed" -max_total_time="$seconds" -max_len="$(max_len "$t")" -timeout=10 \
-      -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="build/asan/findings/$t/" \
-      "${dirs[@]}" >"$tmp/$t.log" 2>&1; then
+  ASAN_OPTIONS="${ASAN_OPTIONS:-}:detect_leaks=1" build/asan/tests/fuzz/fuzz_"$t" \
+    -seed="$seed" -max_total_time="$seconds" -max_len="$(max_len "$t")" -timeout=10 \
+    -rss_limit_mb=2048 -print_final_stats=1 -artifact_prefix="build/asan/findings/$t/" \
+    "${dirs[@]}" >"$tmp/$t.log" 2>&1 || rc=$?
+  echo "$rc" >"$tmp/$t.rc"
+}
+for t in "${targets[@]}"; do
+  mkdir -p "$corpus/$t" "build/asan/findings/$t"
+done
+running=0
+for t in "${targets[@]}"; do
+  if ((running == jobs)); then
+    wait -n || true
+    running=$((running - 1))
+  fi
+  echo "fuzz: $t for ${seconds}s (seed $seed)"
+  fuzz_one "$t" &
+  running=$((running + 1))
+done
+wait
+failed=()
+for t in "${targets[@]}"; do
+  echo "fuzz: $t:"
+  if [ "$(cat "$tmp/$t.rc")" != 0 ]; then
     failed+=("$t")
     tail -n 60 "$tmp/$t.log"
   fi

@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
 # README command 2: set up, build, and run every test, in stages (README, docs/fuzzing.md):
-#   release  the release build: ctest, then the out-of-tree SDK check;
+#   release  the release build: ctest (with the out-of-tree SDK checks, "sdk: ...");
 #   web      the WebAssembly engine of `pinsim share` (the web preset, Emscripten), then its
 #            tests (node: bit-identical to native; headless Chromium and Firefox: the page);
-#   asan     the same ctest suite under AddressSanitizer + UBSan (the asan preset: clang,
-#            one build that also holds the libFuzzer programs), zero reports, plus the
-#            sanitizers' own canary tests (tests/sanitizers);
+#   asan     the ctest suite under AddressSanitizer + UBSan (the asan preset: clang, one
+#            build that also holds the libFuzzer programs), zero reports, plus the
+#            sanitizers' own canary tests (tests/sanitizers); the asan test preset leaves out
+#            the labels web and release_only (browsers, installs, out-of-tree builds, the
+#            Slurm cluster: tests/CMakeLists.txt, pinsim_test_properties);
 #   fuzz     a bounded libFuzzer run of the parsers (the asan build's fuzz_* programs;
 #            30 s per target). After the asan stage it builds nothing; alone, it builds
 #            only those programs.
@@ -24,9 +26,6 @@ took() { echo "test.sh: $1 took $((SECONDS - $2)) s"; }
 if has release; then
   t=$SECONDS
   ctest --preset release -j "$jobs"
-  if [ -f scripts/test_sdk.sh ]; then
-    bash scripts/test_sdk.sh
-  fi
   took "release tests" $t
 fi
 
