@@ -188,6 +188,8 @@ def check_rubrics(configs, failures):
         ("a simulation test without a scene",
          lambda d: next(t for t in d["tests"] if t["check"] == "simulation").pop("scene")),
         ("a bad visibility", lambda d: d["tests"][0].update({"visibility": "secret"})),
+        ("a bad top-level visibility", lambda d: d.update({"visibility": "later"})),
+        ("a bad stdout_visibility", lambda d: d.update({"stdout_visibility": "students"})),
         ("no tests", lambda d: d.update({"tests": []})),
     ]
     for what, change in broken:

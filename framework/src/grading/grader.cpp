@@ -2,6 +2,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
 #include <map>
@@ -34,9 +35,20 @@ struct PluginWorker {
   std::unique_ptr<RemoteWorker> worker;
   std::shared_ptr<const LoadedPlugin> table;
   /// Set once the plugin cannot be graded at all (it cannot be opened, or it hung while
-  /// loading or in create): every later test of it fails at once with this message.
+  /// loading or in create): the test `fatal_at` shows this cause in full, every other test
+  /// of the plugin fails at once with "not run: <fatal_short>, see test <fatal_at + 1>".
   std::string fatal;
+  std::string fatal_short;
+  std::size_t fatal_at = 0;
 };
+
+constexpr std::size_t kNone = static_cast<std::size_t>(-1);
+
+/// The cause at the head of a message: up to its first ':' or line end ("the submission
+/// does not compile: the build ..." gives "the submission does not compile").
+std::string first_clause(const std::string& s) {
+  return s.substr(0, std::min(s.find(':'), s.find('\n')));
+}
 
 class Grading {
  public:
@@ -53,8 +65,9 @@ class Grading {
       const RubricTest& t = rubric_.tests[i];
       const double t0 = now();
       grading::Verdict v = run_test(t, i, prep);
-      // What the copy of the submission left out is said once, on the first test.
-      if (i == 0 && !prep.copy_notes.empty()) v.output = prep.copy_notes + "\n\n" + v.output;
+      // What the copy of the submission left out is said once, on the first visible test.
+      if (i == carrier(0, "") && !prep.copy_notes.empty())
+        v.output = prep.copy_notes + "\n\n" + v.output;
       add(i, v, now() - t0);
       // Progress on disk after every test: valid files, score 0 until the end.
       write_interim(i + 1);
@@ -68,12 +81,38 @@ class Grading {
   int stopped_by() const { return stopped_by_; }
 
  private:
+  /// The test that states a cause shared by the tests from `from` on (those of `plugin`, or
+  /// all of them when it is empty): the first visible one, so that a student who sees the
+  /// others sees it too; `from` when none is visible.
+  std::size_t carrier(std::size_t from, const std::string& plugin) const {
+    for (std::size_t i = from; i < rubric_.tests.size(); ++i)
+      if ((plugin.empty() || rubric_.tests[i].plugin == plugin) &&
+          rubric_.tests[i].visibility == "visible")
+        return i;
+    return from;
+  }
+
+  /// A cause that stops several tests, stated once: in full on the test `at`, and on the
+  /// others as "not run: <short>, see test N".
+  static grading::Verdict stated_once(std::size_t index, std::size_t at, const std::string& full,
+                                      const std::string& short_cause) {
+    if (index == at) return {false, full, false};
+    return {false, "not run: " + short_cause + ", see test " + std::to_string(at + 1), false};
+  }
+
   grading::Verdict run_test(const RubricTest& t, std::size_t index,
                             const grading::PreparedSubmission& prep) {
-    if (!prep.problem.empty()) return {false, prep.problem};
+    if (!prep.problem.empty()) {
+      if (problem_at_ == kNone) problem_at_ = carrier(index, "");
+      return stated_once(index, problem_at_, prep.problem, first_clause(prep.problem));
+    }
+    if (const auto it = workers_.find(t.plugin); it != workers_.end() && !it->second.fatal.empty())
+      return stated_once(index, it->second.fatal_at, it->second.fatal, it->second.fatal_short);
     if (now() - start_ > rubric_.time_budget_seconds)
-      return {false, "not run: the submission used up its time budget of " +
-                         num(rubric_.time_budget_seconds) + " s"};
+      return {false,
+              "not run: the submission used up its time budget of " +
+                  num(rubric_.time_budget_seconds) + " s",
+              false};
     // One sandbox at a time: another plugin's worker ends before this one is used (the
     // fallback sandbox sweeps the one uid of every step when a step ends).
     for (auto& [name, other] : workers_)
@@ -82,11 +121,10 @@ class Grading {
         other.worker.reset();
       }
     PluginWorker& pw = workers_[t.plugin];
-    if (!pw.fatal.empty()) return {false, pw.fatal};
     if (!pw.worker || pw.worker->fault() != WorkerFault::None) {
       pw.worker.reset();
       open(pw, t, index, prep);
-      if (!pw.fatal.empty()) return {false, pw.fatal};
+      if (!pw.fatal.empty()) return stated_once(index, pw.fatal_at, pw.fatal, pw.fatal_short);
     }
     RemoteWorker& w = *pw.worker;
     w.begin_test(now() + rubric_.limits.wall_seconds);
@@ -98,9 +136,11 @@ class Grading {
     }
     if (w.fault() != WorkerFault::None) {
       v = {false, "The submission " + w.failure() + "."};
-      if (w.fault() == WorkerFault::TimedOut && w.failed_during() == "create")
-        pw.fatal = "The submission hangs in create (found in test " + std::to_string(index + 1) +
-                   ": " + w.failure() + "); its other tests are not run.";
+      if (w.fault() == WorkerFault::TimedOut && w.failed_during() == "create") {
+        pw.fatal = v.output;
+        pw.fatal_short = "'" + t.plugin + "' hangs in create";
+        pw.fatal_at = index;
+      }
     }
     printed_ = w.end_test();
     printed_bytes_ = w.printed_bytes();
@@ -125,6 +165,8 @@ class Grading {
           {"/grader/pinsim", "-q", "grade-worker", "--libraries", "/submission/lib"}, spec);
     } catch (const std::exception& e) {
       pw.fatal = std::string("the grader could not start a sandbox: ") + e.what();
+      pw.fatal_short = "the grader could not start a sandbox";
+      pw.fatal_at = carrier(index, t.plugin);
       return;
     }
     pw.worker = std::make_unique<RemoteWorker>(proc, rubric_.limits,
@@ -133,13 +175,29 @@ class Grading {
       pw.table = pw.worker->open(t.plugin,
                                  rubric_.kind == "force" ? PINSIM_KIND_FORCE : PINSIM_KIND_BACKEND);
     } catch (const grading::WorkerGone&) {
-      pw.fatal = "The submission " + pw.worker->failure() + " (test " + std::to_string(index + 1) +
-                 "); its tests of '" + t.plugin + "' are not run.";
+      pw.fatal = "The submission " + pw.worker->failure() + " while '" + t.plugin +
+                 "' was loading; its tests are not run.";
+      pw.fatal_short = "'" + t.plugin + "' did not load (the submission " +
+                       first_clause(pw.worker->failure()) + ")";
     } catch (const std::exception& e) {
       pw.fatal = e.what();
-      if (!prep.build_log.empty()) pw.fatal += "\n" + prep.build_log;
+      const bool missing = pw.fatal.find("no library of the submission declares") == 0;
+      pw.fatal_short = !missing ? "'" + t.plugin + "' could not be loaded"
+                       : !prep.build_log.empty()
+                           ? "'" + t.plugin + "' did not build"
+                           : "the submission has no plugin '" + t.plugin + "'";
     }
     if (!pw.fatal.empty()) {
+      pw.fatal_at = carrier(index, t.plugin);
+      // A build's log is shown once, on the first test of a plugin it left out.
+      if (pw.fatal_short.find("did not build") != std::string::npos) {
+        if (build_log_at_ == kNone) {
+          build_log_at_ = pw.fatal_at;
+          pw.fatal += "\n" + prep.build_log;
+        } else {
+          pw.fatal += "\nThe build's log is in test " + std::to_string(build_log_at_ + 1) + ".";
+        }
+      }
       printed_open_ = pw.worker->end_test();
       pw.worker->finish();
       pw.worker.reset();
@@ -153,7 +211,7 @@ class Grading {
   void add(std::size_t i, grading::Verdict v, double seconds) {
     const RubricTest& t = rubric_.tests[i];
     std::string out = v.output;
-    if (!v.passed && !t.hint.empty()) out += "\nHint: " + t.hint;
+    if (!v.passed && v.ran && !t.hint.empty()) out += "\nHint: " + t.hint;
     const std::string printed = !printed_.empty() ? printed_ : printed_open_;
     if (!printed.empty())
       out += "\n\n--- what your code printed during this test (" + std::to_string(printed_bytes_) +
@@ -180,7 +238,8 @@ class Grading {
     nlohmann::json r = {{"score", interim ? 0.0 : score},
                         {"max_score", max_score},
                         {"execution_time", now() - start_},
-                        {"visibility", "visible"},
+                        {"visibility", rubric_.visibility},
+                        {"stdout_visibility", rubric_.stdout_visibility},
                         {"tests", tests_},
                         {"extra_data", grading::sandbox_extra_data()}};
     const std::string how =
@@ -205,6 +264,8 @@ class Grading {
   std::string printed_, printed_open_;
   std::size_t printed_bytes_ = 0;
   int stopped_by_ = 0;
+  std::size_t problem_at_ = kNone;    ///< the test that shows prep.problem in full
+  std::size_t build_log_at_ = kNone;  ///< the test that shows the build's log
 };
 
 }  // namespace
@@ -212,8 +273,10 @@ class Grading {
 GradeReport grade_submission(const Rubric& rubric, const GradeOptions& opt) {
   double total = 0.0;
   for (const auto& t : rubric.tests) total += t.points;
-  const auto failed = [total](const std::string& why) {
-    return grading::failed_results(why, total);
+  const auto failed = [&rubric, total](const std::string& why) {
+    nlohmann::json r = grading::failed_results(why, total);
+    r["stdout_visibility"] = rubric.stdout_visibility;
+    return r;
   };
   GradeReport report;
   std::error_code ec;

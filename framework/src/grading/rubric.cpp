@@ -34,6 +34,16 @@ std::string read_text(const fs::path& p) {
   return ss.str();
 }
 
+/// Gradescope's four visibility values; anything else fails naming the JSON path.
+std::string read_visibility(const nlohmann::json& j, const char* key, const std::string& fallback,
+                            const Loc& at) {
+  const std::string v = read_string_or(j, key, fallback, at);
+  if (v != "visible" && v != "hidden" && v != "after_due_date" && v != "after_published")
+    (at / key).fail("expected visible, hidden, after_due_date or after_published, got \"" + v +
+                    "\"");
+  return v;
+}
+
 double positive(const nlohmann::json& j, const char* key, double fallback, const Loc& at,
                 double max) {
   const double v = read_number_or(j, key, fallback, at);
@@ -69,8 +79,8 @@ Rubric load_rubric(const fs::path& file) {
   const Loc root{file.string(), ""};
   require_object(j, root);
   check_keys(j,
-             {"$schema", "name", "kind", "limits", "build_limits", "time_budget_seconds",
-              "output_limit_kb", "tests"},
+             {"$schema", "name", "kind", "visibility", "stdout_visibility", "limits",
+              "build_limits", "time_budget_seconds", "output_limit_kb", "tests"},
              root);
   Rubric r;
   r.file = fs::absolute(file);
@@ -78,6 +88,8 @@ Rubric load_rubric(const fs::path& file) {
   r.kind = read_string_or(j, "kind", "force", root);
   if (r.kind != "force" && r.kind != "backend")
     (root / "kind").fail("expected \"force\" or \"backend\", got \"" + r.kind + "\"");
+  r.visibility = read_visibility(j, "visibility", r.visibility, root);
+  r.stdout_visibility = read_visibility(j, "stdout_visibility", r.stdout_visibility, root);
   if (j.contains("limits")) r.limits = read_limits(j["limits"], root / "limits", r.limits);
   if (j.contains("build_limits"))
     r.build_limits = read_limits(j["build_limits"], root / "build_limits", r.build_limits);
@@ -111,10 +123,7 @@ Rubric load_rubric(const fs::path& file) {
     if (rt.plugin.empty()) (at / "plugin").fail("required: the submission's plugin name");
     rt.points = read_number_or(t, "points", 1.0, at);
     if (!(rt.points >= 0)) (at / "points").fail("must be >= 0");
-    rt.visibility = read_string_or(t, "visibility", "visible", at);
-    if (rt.visibility != "visible" && rt.visibility != "hidden" &&
-        rt.visibility != "after_due_date" && rt.visibility != "after_published")
-      (at / "visibility").fail("expected visible, hidden, after_due_date or after_published");
+    rt.visibility = read_visibility(t, "visibility", r.visibility, at);
     rt.hint = read_string_or(t, "hint", "", at);
     if (t.contains("params")) require_object(t["params"], at / "params");
     if (t.contains("second_opinion_params"))

@@ -17,7 +17,7 @@ struct RubricTest {
   std::string check;   ///< load, gradient, dfdx, ..., reference, simulation, backend_*
   std::string plugin;  ///< the submission's plugin this test is about
   double points = 1.0;
-  /// Gradescope: visible, hidden, after_due_date, after_published
+  /// Gradescope: visible, hidden, after_due_date, after_published (default: the rubric's)
   std::string visibility = "visible";
   std::string hint;     ///< told to the student when the test fails
   nlohmann::json spec;  ///< the whole entry (check-specific keys)
@@ -27,6 +27,10 @@ struct Rubric {
   std::filesystem::path file;
   std::string name;
   std::string kind;  ///< "force" or "backend"
+  /// Gradescope's top-level visibility of the results (and the tests' default), and of the
+  /// grader's stdout: visible, hidden, after_due_date, after_published.
+  std::string visibility = "visible";
+  std::string stdout_visibility = "hidden";
   /// Limits of each test's worker (the wall-clock limit is per test).
   grading::SandboxLimits limits{20.0, 2048.0, 60.0, 64, 64.0, 256, 256.0};
   /// Limits of configuring and of building a source submission (each step).

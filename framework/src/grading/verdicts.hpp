@@ -16,6 +16,9 @@ namespace pinsim::grading {
 struct Verdict {
   bool passed = false;
   std::string output;
+  /// False when the test could not run at all (no build, no plugin, no time left): its
+  /// output is the cause, and the rubric's physics hint is not added.
+  bool ran = true;
 };
 
 /// Runs test `t` on the submission's plugin `sub`; the rubric's folder resolves scenes.

@@ -665,10 +665,17 @@ std::string format_report(const CheckReport& rep) {
                   c.tolerance > 0 ? num(c.tolerance, 3).c_str() : "-");
     o << line << c.detail << "\n";
   }
-  int fails = 0;
-  for (const auto& c : rep.checks) fails += c.status == CheckStatus::Fail ? 1 : 0;
+  int passes = 0, fails = 0;
+  std::string skipped;
+  for (const auto& c : rep.checks) {
+    passes += c.status == CheckStatus::Pass ? 1 : 0;
+    fails += c.status == CheckStatus::Fail ? 1 : 0;
+    if (c.status == CheckStatus::Skip) skipped += (skipped.empty() ? "" : ", ") + c.name;
+  }
+  const std::size_t skips = rep.checks.size() - static_cast<std::size_t>(passes + fails);
   o << (fails == 0 ? "PASS" : "FAIL") << ": " << rep.plugin << ", " << rep.checks.size()
-    << " checks, " << fails << " failed\n";
+    << " checks: " << passes << " passed, " << fails << " failed, " << skips << " skipped"
+    << (skips > 0 ? " (" + skipped + ")" : std::string()) << "\n";
   return o.str();
 }
 

@@ -167,13 +167,14 @@ TEST_CASE("grader: a library of the wrong ABI fails every test, saying why") {
   CHECK_THAT(r["tests"][0]["output"].get<std::string>(), Contains("wrong plugin ABI version"));
 }
 
-TEST_CASE("grader: a source folder that does not compile fails every test with the log") {
+TEST_CASE("grader: a source folder that does not compile fails every test, the log once") {
   const json r =
       grade(src / "rubric_springs.json", src / "submissions/does_not_compile", "nobuild");
   CHECK(r["score"].get<double>() == 0);
   const std::string out = r["tests"][0]["output"].get<std::string>();
   CHECK_THAT(out, Contains("the submission does not compile"));
   CHECK_THAT(out, Contains("spring.cpp:8:3: error: expected"));  // the compiler's own words
+  CHECK(r["tests"][1]["output"] == "not run: the submission does not compile, see test 1");
 }
 
 TEST_CASE("grader: a correct source folder is built against the SDK package and gets full marks") {

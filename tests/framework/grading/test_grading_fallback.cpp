@@ -88,3 +88,15 @@ TEST_CASE("fallback: without Landlock, a rubric anyone can read makes the grader
   CHECK_THAT(g.results["extra_data"]["sandbox"]["detail"].get<std::string>(),
              Contains("no Landlock here"));
 }
+
+TEST_CASE("fallback: the grader's log says which sandbox it uses, and why") {
+  const fs::path out = pinsim::test::temp_dir("fallback-log");
+  const auto r = pinsim::test::shell(std::string(PINSIM_CONTAINER_LIKE) + " -- " + PINSIM_BIN +
+                                     " grade --rubric " + (src / "rubric_hostile.json").string() +
+                                     " --submission " + (subs / "hostile_bad_text").string() +
+                                     " --out " + out.string() + " 2>&1");
+  INFO(r.output.substr(0, 4000));
+  CHECK(r.code == 0);
+  CHECK_THAT(r.output, Contains("sandbox: fallback, because namespaces are refused here"));
+  CHECK_THAT(r.output, Contains("unprivileged uid"));
+}
