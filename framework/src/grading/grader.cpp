@@ -106,13 +106,18 @@ class Grading {
       if (problem_at_ == kNone) problem_at_ = carrier(index, "");
       return stated_once(index, problem_at_, prep.problem, first_clause(prep.problem));
     }
-    if (const auto it = workers_.find(t.plugin); it != workers_.end() && !it->second.fatal.empty())
-      return stated_once(index, it->second.fatal_at, it->second.fatal, it->second.fatal_short);
+    // A plugin that cannot be graded: the test that states why does so even past the time
+    // budget (the others point to it); the budget stops the rest first.
+    const auto it = workers_.find(t.plugin);
+    const bool fatal = it != workers_.end() && !it->second.fatal.empty();
+    if (fatal && index == it->second.fatal_at) return {false, it->second.fatal, false};
     if (now() - start_ > rubric_.time_budget_seconds)
       return {false,
               "not run: the submission used up its time budget of " +
                   num(rubric_.time_budget_seconds) + " s",
               false};
+    if (fatal)
+      return stated_once(index, it->second.fatal_at, it->second.fatal, it->second.fatal_short);
     // One sandbox at a time: another plugin's worker ends before this one is used (the
     // fallback sandbox sweeps the one uid of every step when a step ends).
     for (auto& [name, other] : workers_)
