@@ -87,9 +87,9 @@ Recorder::Recorder(const fs::path& dir, const Scene& scene, bool overwrite, bool
   if (text.size() > 4 * compact.size() + 4096) text = compact;
   write_file_atomically(dir_ / "scene.json", text + "\n");
   if (scene.output_format == "hdf5")
-    traj_h5_ =
-        std::make_unique<Hdf5TrajectoryWriter>(dir_ / "trajectory.h5", scene.initial_state().size(),
-                                               scene.name, scene.dt, hdf5_background);
+    traj_h5_ = std::make_unique<Hdf5TrajectoryWriter>(dir_ / "trajectory.h5", scene.initial_state(),
+                                                      scene.name, scene.dt, hdf5_background,
+                                                      scene.output_compression);
   else
     traj_ = std::make_unique<LineFile>(dir_ / "trajectory.csv", "t,particle,x,y,vx,vy\n");
   events_ = std::make_unique<LineFile>(

@@ -183,12 +183,13 @@ nlohmann::json read_backend_scene(const nlohmann::json& d, const Loc& root) {
   return out;
 }
 
-// output: {"every" >= 1, "format": "csv" | "hdf5", "events": "impacts" | "all" | "none"}.
+// output: {"every" >= 1, "format": "csv" | "hdf5", "compression": 0..9 (hdf5 only),
+//          "events": "impacts" | "all" | "none"}.
 void read_output(const nlohmann::json& d, const Loc& root, Scene& s) {
   if (!d.contains("output")) return;
   const auto& o = d.at("output");
   require_object(o, root / "output");
-  check_keys(o, {"every", "format", "events"}, root / "output");
+  check_keys(o, {"every", "format", "compression", "events"}, root / "output");
   s.output_every = read_count_or(o, "every", 1, root / "output");
   if (s.output_every == 0) (root / "output" / "every").fail("must be >= 1, got 0");
   s.output_format = read_string_or(o, "format", "csv", root / "output");
@@ -198,6 +199,17 @@ void read_output(const nlohmann::json& d, const Loc& root, Scene& s) {
   if (s.output_format == "hdf5" && !hdf5_supported())
     (root / "output" / "format")
         .fail("\"hdf5\" needs a pinsim built with HDF5 (PINSIM_WITH_HDF5=ON); use \"csv\"");
+  if (o.contains("compression")) {
+    const uint64_t level = read_count_or(o, "compression", 0, root / "output");
+    if (level > 9)
+      (root / "output" / "compression")
+          .fail("expected a deflate level from 0 (none) to 9, got " + std::to_string(level));
+    if (s.output_format != "hdf5")
+      (root / "output" / "compression")
+          .fail("applies to \"format\": \"hdf5\" only (this scene writes \"" + s.output_format +
+                "\")");
+    s.output_compression = static_cast<int>(level);
+  }
   s.output_events = read_string_or(o, "events", s.output_events, root / "output");
   if (s.output_events != "impacts" && s.output_events != "all" && s.output_events != "none")
     (root / "output" / "events")

@@ -42,6 +42,7 @@ struct Scene {
   nlohmann::json backend_scene;       ///< {"obstacles": [...], "inputs": [...], "contacts": {...}}
   uint64_t output_every = 1;          ///< write the trajectory every N steps
   std::string output_format = "csv";  ///< trajectory.csv ("csv") or trajectory.h5 ("hdf5")
+  int output_compression = 0;         ///< trajectory.h5's deflate level, 0 (none) to 9
   /// events.csv: "impacts" (touch begins; spans in contacts.csv), "all" (every impulse) or
   /// "none"
   std::string output_events = "impacts";

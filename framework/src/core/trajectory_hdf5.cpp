@@ -88,6 +88,19 @@ void write_scalar_attr(hid_t obj, const char* name, hid_t type, T value) {
     throw std::runtime_error(std::string("cannot write attribute ") + name);
 }
 
+/// A contiguous 1D dataset of `n` values (stored as `file_type`, given as `mem_type`).
+void write_vector(hid_t file, const char* name, hid_t file_type, hid_t mem_type, const void* data,
+                  std::size_t n) {
+  const hsize_t dims[1] = {n};
+  Hid space(H5Screate_simple(1, dims, nullptr), H5Sclose);
+  Hid dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
+  if (H5Pset_obj_track_times(dcpl, false) < 0)
+    throw std::runtime_error(std::string("dataset /") + name);
+  Hid d(H5Dcreate2(file, name, file_type, space, H5P_DEFAULT, dcpl, H5P_DEFAULT), H5Dclose);
+  if (d < 0 || (n > 0 && H5Dwrite(d, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0))
+    throw std::runtime_error(std::string("cannot write dataset /") + name);
+}
+
 /// The system's reason for the innermost failure on this thread's HDF5 error stack (the
 /// file driver records it as "... error message = 'File too large' ..."), or "".
 std::string hdf5_system_error() {
@@ -158,10 +171,10 @@ struct Hdf5TrajectoryWriter::Queue {
   std::thread thread;
 };
 
-Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t particles,
+Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, const State& initial,
                                            const std::string& scene_name, double dt,
-                                           bool background)
-    : h_(std::make_unique<Handles>()), file_(file), particles_(particles) {
+                                           bool background, int compression)
+    : h_(std::make_unique<Handles>()), file_(file), particles_(initial.size()) {
   auto fail = [&](const std::string& what) {
     h_.reset();
     throw OutputError(file_.string() + ": cannot create the HDF5 trajectory (" + what + ")");
@@ -183,7 +196,7 @@ Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t par
 
   // [frames x particles], extendible along the frames. A chunk holds one frame of a
   // column (or several frames when there are few particles: chunks of >= 8 KB).
-  const hsize_t n = particles;
+  const hsize_t n = particles_;
   const hsize_t rows = std::clamp<hsize_t>(1024 / std::max<hsize_t>(n, 1), 1, 1024);
   Hid dcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
   const hsize_t dims[2] = {0, n}, maxdims[2] = {H5S_UNLIMITED, n > 0 ? n : H5S_UNLIMITED},
@@ -192,6 +205,13 @@ Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t par
   // No creation/modification times in the object headers: the same run, the same bytes.
   if (H5Pset_chunk(dcpl, 2, chunk) < 0 || H5Pset_obj_track_times(dcpl, false) < 0)
     fail("chunk layout");
+  if (compression < 0 || compression > 9)
+    fail("compression level " + std::to_string(compression) + " is not in 0 to 9");
+  const bool deflate = compression > 0;
+  if (deflate && H5Zfilter_avail(H5Z_FILTER_DEFLATE) <= 0)
+    fail("this HDF5 library has no deflate filter for output.compression");
+  if (deflate && H5Pset_deflate(dcpl, static_cast<unsigned>(compression)) < 0)
+    fail("deflate filter");
   // A frame that fills whole chunks (rows == 1) goes straight to the file: no chunk cache,
   // so no copy into it and no second pass at H5Fflush.
   Hid dapl(H5Pcreate(H5P_DATASET_ACCESS), H5Pclose);
@@ -206,19 +226,39 @@ Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t par
   const hsize_t tdims[1] = {0}, tmax[1] = {H5S_UNLIMITED}, tchunk[1] = {1024};
   Hid tspace(H5Screate_simple(1, tdims, tmax), H5Sclose);
   Hid tdcpl(H5Pcreate(H5P_DATASET_CREATE), H5Pclose);
-  if (H5Pset_chunk(tdcpl, 1, tchunk) < 0 || H5Pset_obj_track_times(tdcpl, false) < 0)
+  if (H5Pset_chunk(tdcpl, 1, tchunk) < 0 || H5Pset_obj_track_times(tdcpl, false) < 0 ||
+      (deflate && H5Pset_deflate(tdcpl, static_cast<unsigned>(compression)) < 0))
     fail("chunk layout");
   h_->t = Hid(H5Dcreate2(h_->file, "t", H5T_IEEE_F64LE, tspace, H5P_DEFAULT, tdcpl, H5P_DEFAULT),
               H5Dclose);
   if (h_->t < 0) fail("dataset /t");
+  // The particles' constant properties, once: radius, mass (+inf where pinned), pinned.
+  try {
+    std::vector<double> mass(particles_);
+    std::vector<uint8_t> pinned(particles_);
+    for (std::size_t i = 0; i < particles_; ++i) {
+      const double w = initial.inv_mass[static_cast<Eigen::Index>(i)];
+      pinned[i] = w > 0.0 ? 0 : 1;
+      mass[i] = w > 0.0 ? 1.0 / w : HUGE_VAL;
+    }
+    write_vector(h_->file, "radius", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, initial.radius.data(),
+                 particles_);
+    write_vector(h_->file, "mass", H5T_IEEE_F64LE, H5T_NATIVE_DOUBLE, mass.data(), particles_);
+    write_vector(h_->file, "pinned", H5T_STD_U8LE, H5T_NATIVE_UINT8, pinned.data(), particles_);
+  } catch (const std::exception& e) {
+    fail(e.what());
+  }
   try {
     write_string_attr(h_->file, "format", "pinsim trajectory 1");
     write_string_attr(h_->file, "scene", scene_name);
     write_scalar_attr(h_->file, "dt", H5T_NATIVE_DOUBLE, dt);
-    write_string_attr(h_->file, "units", "t: s; x, y: m; vx, vy: m/s");
+    write_string_attr(h_->file, "units", "t: s; x, y, radius: m; vx, vy: m/s; mass: kg");
     write_string_attr(h_->file, "layout",
                       "/t [frames]; /x, /y, /vx, /vy [frames x particles], float64; read the "
-                      "first frames_complete frames");
+                      "first frames_complete frames; /radius, /mass (inf where pinned) float64 "
+                      "and /pinned uint8 [particles]");
+    write_scalar_attr(h_->file, "compression", H5T_NATIVE_UINT64,
+                      static_cast<uint64_t>(compression));
     write_scalar_attr(h_->file, "particles", H5T_NATIVE_UINT64, static_cast<uint64_t>(n));
     write_scalar_attr(h_->file, "frames_complete", H5T_NATIVE_UINT64, uint64_t{0});
   } catch (const std::exception& e) {
@@ -487,9 +527,9 @@ bool hdf5_supported() { return false; }
 struct Hdf5TrajectoryWriter::Handles {};
 struct Hdf5TrajectoryWriter::Queue {};
 
-Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, std::size_t particles,
-                                           const std::string&, double, bool)
-    : file_(file), particles_(particles) {
+Hdf5TrajectoryWriter::Hdf5TrajectoryWriter(const fs::path& file, const State& initial,
+                                           const std::string&, double, bool, int)
+    : file_(file), particles_(initial.size()) {
   throw OutputError(file.string() + ": this pinsim was built without HDF5 (PINSIM_WITH_HDF5=OFF)");
 }
 Hdf5TrajectoryWriter::~Hdf5TrajectoryWriter() = default;

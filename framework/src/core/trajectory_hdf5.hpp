@@ -1,11 +1,12 @@
 // trajectory.h5: the run's trajectory in HDF5 (scene "output": {"format": "hdf5"}), for big
-// runs. Layout (README "Run output"): /t [frames], /x, /y, /vx, /vy [frames x particles],
-// all float64, chunked and extendible along the frames; root attributes scene, dt, units,
-// particles, frames_complete. Written frame by frame; after each frame the file is flushed
-// (H5Fflush) and frames_complete updated, so a run killed at any point (kill -9) leaves a
-// file that h5py, h5dump and pinsim read up to the last flushed frame.
-// The HDF5 calls run on a writer thread: the step thread copies the state into one of two
-// frame buffers and goes on (back-pressure: it waits when both are still queued), so memory
+// runs. Layout (docs/running.md): /t [frames], /x, /y, /vx, /vy [frames x particles], all
+// float64, chunked and extendible along the frames (deflate-compressed at the scene's
+// output.compression level); /radius, /mass (inf where pinned) and /pinned (uint8)
+// [particles]; root attributes scene, dt, units, particles, compression, frames_complete. Written
+// frame by frame; after each frame the file is flushed (H5Fflush) and frames_complete updated, so a
+// run killed at any point (kill -9) leaves a file that h5py, h5dump and pinsim read up to the last
+// flushed frame. The HDF5 calls run on a writer thread: the step thread copies the state into one
+// of two frame buffers and goes on (back-pressure: it waits when both are still queued), so memory
 // stays at two frames whatever the run's length. The writer makes the same calls in the same
 // order as a writer without a thread would: the file's bytes do not depend on timing.
 #pragma once
@@ -26,12 +27,15 @@ bool hdf5_supported();
 /// Writes trajectory.h5 frame by frame. Every HDF5 failure is an OutputError naming the file.
 class Hdf5TrajectoryWriter {
  public:
-  /// Creates (truncates) `file` for `particles` particles; `scene_name` and `dt` become
-  /// root attributes. `background`: write on a writer thread (see the file comment; inside
-  /// write() if no thread can be started); false writes each frame inside write() (the same
-  /// bytes; for benchmarks and tests).
-  Hdf5TrajectoryWriter(const std::filesystem::path& file, std::size_t particles,
-                       const std::string& scene_name, double dt, bool background = true);
+  /// Creates (truncates) `file` for the particles of `initial`, whose radii, masses and
+  /// pinned flags it writes once (/radius, /mass, /pinned); `scene_name` and `dt` become root
+  /// attributes. `background`: write on a writer thread (see the file comment; inside write()
+  /// if no thread can be started); false writes each frame inside write() (the same bytes;
+  /// for benchmarks and tests). `compression`: the deflate level of the frame datasets, 0
+  /// (none) to 9.
+  Hdf5TrajectoryWriter(const std::filesystem::path& file, const State& initial,
+                       const std::string& scene_name, double dt, bool background = true,
+                       int compression = 0);
   /// Writes the frames still queued and closes the file (errors are dropped: call close()).
   ~Hdf5TrajectoryWriter();
   Hdf5TrajectoryWriter(const Hdf5TrajectoryWriter&) = delete;

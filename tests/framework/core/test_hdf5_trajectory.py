@@ -17,6 +17,8 @@
 6. A file-size limit (RLIMIT_FSIZE) and, as root, a full disk (a 1 MiB tmpfs): exit 1, a
    message naming trajectory.h5 and the reason, summary.json's error of kind "output", and a
    file that h5py and h5dump open whose first frames_complete frames equal a CSV run's.
+7. /radius, /mass (inf where pinned) and /pinned hold the scene's particles.
+8. output.compression: deflate at that level, the same doubles; bad levels are exit 2.
 
 Usage: test_hdf5_trajectory.py PINSIM_BIN WORK_DIR
 """
@@ -266,6 +268,44 @@ if os.geteuid() == 0:
         check_failed_run("full", r, copy, "No space left on device")
 else:
     print("full disk: not root, skipped (the file-size limit covers the same path)")
+
+# 7. The particles' constant properties: /radius, /mass (inf where pinned), /pinned, exactly
+# as the scene gives them.
+props = write_scene("props.json", {
+    "name": "h5_props", "time": {"dt": 0.01, "duration": 0.05}, "backend": {"name": "none"},
+    "particles": [{"x": [0, 0], "mass": 2.5, "radius": 0.05},
+                  {"x": [1, 0], "pinned": True, "radius": 0.125},
+                  {"x": [2, 0], "mass": 0.75, "radius": 0.2}],
+    "forces": [{"type": "gravity"}], "output": {"format": "hdf5"}})
+out = os.path.join(WORK, "props")
+r = run("-q", "run", props, "--out", out)
+check(r.returncode == 0, f"props run: exit {r.returncode}: {r.stderr}")
+with h5py.File(os.path.join(out, "trajectory.h5"), "r") as f:
+    check(list(f["radius"][:]) == [0.05, 0.125, 0.2], f"radius {f['radius'][:]}")
+    check(list(f["mass"][:]) == [2.5, float("inf"), 0.75], f"mass {f['mass'][:]}")
+    check(list(f["pinned"][:]) == [0, 1, 0] and f["pinned"].dtype == np.uint8,
+          f"pinned {f['pinned'][:]} {f['pinned'].dtype}")
+    check(int(f.attrs["compression"]) == 0, "compression attribute 0 by default")
+
+# 8. output.compression: deflate on the frame datasets, the same doubles as without it;
+# a level out of 0..9, or compression for a CSV run, is exit 2 naming output.compression.
+gz_dir = os.path.join(WORK, "gz", "run")
+r = run("-q", "run", scene, "--out", gz_dir, "--set", "output.format=hdf5",
+        "--set", "output.compression=6")
+check(r.returncode == 0, f"compressed run: exit {r.returncode}: {r.stderr}")
+with h5py.File(os.path.join(gz_dir, "trajectory.h5"), "r") as g, h5py.File(h5file, "r") as f:
+    check(g["x"].compression == "gzip" and g["x"].compression_opts == 6,
+          f"/x filter {g['x'].compression} {g['x'].compression_opts}")
+    check(f["x"].compression is None, "the default run is not compressed")
+    check(int(g.attrs["compression"]) == 6, "compression attribute")
+    for k in ("t", "x", "y", "vx", "vy", "radius", "mass", "pinned"):
+        check(np.array_equal(g[k][:], f[k][:]), f"compressed /{k} differs from the plain file")
+for sets, what in ((["output.format=hdf5", "output.compression=10"], "from 0 (none) to 9"),
+                   (["output.compression=3"], "hdf5\" only")):
+    args = [a for kv in sets for a in ("--set", kv)]
+    r = run("-q", "run", scene, "--out", os.path.join(WORK, "badgz"), *args)
+    check(r.returncode == 2 and "output.compression" in r.stderr and what in r.stderr,
+          f"compression {sets}: exit {r.returncode}: {r.stderr}")
 
 shutil.rmtree(WORK, ignore_errors=True) if not failures else None
 print("FAILED:" if failures else "ok", *failures, sep="\n")
