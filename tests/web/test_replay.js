@@ -6,7 +6,8 @@
 // largest size that keeps the table's aspect ratio (it touches the window's sides or the bar)
 // - also after the 1280x900 window is resized to 800x500 -,
 // its backing store devicePixelRatio times its CSS size, playback advances, Space pauses it,
-// and the canvas's screenshot is not blank.
+// and the canvas's screenshot is not blank. A crowded run (400 balls) starts with trails and
+// contact flashes off, the pinball's with them on.
 //
 // Usage: test_replay.js BROWSER --pinsim BIN --scene SCENE.json   (makes the run and page)
 //        test_replay.js BROWSER --page FILE.html                  (checks an existing page)
@@ -22,7 +23,7 @@ const SIZES = [
   { width: 800, height: 600, dpr: 1 },
   { width: 800, height: 600, dpr: 2 },
 ];
-const CONTROLS = ["#view", "#bar", "#play", "#scrub", "#time", "#speed", "#trails"];
+const CONTROLS = ["#view", "#bar", "#play", "#scrub", "#time", "#speed", "#trails", "#flashes"];
 
 function parseArgs(argv) {
   const o = { browser: argv[0], pinsim: null, scene: null, page: null };
@@ -53,6 +54,53 @@ function makePage(pinsim, scene) {
   const page = path.join(dir, "replay.html");
   execFileSync(pinsim, ["-q", "replay", run, "--out", page], { stdio: "inherit" });
   return page;
+}
+
+/** A crowded run: 400 balls of 1 cm dropped into a box for 0.3 s, and its replay page. */
+function makeCrowdedPage(pinsim) {
+  const dir = web.tempDir("pinsim-replay-crowd");
+  const particles = [];
+  for (let i = 0; i < 20; ++i)
+    for (let j = 0; j < 20; ++j)
+      particles.push({ x: [0.05 + 0.045 * i, 0.3 + 0.045 * j], v: [0.3 * ((i + j) % 3 - 1), 0],
+                       radius: 0.01 });
+  const scene = {
+    name: "crowd", time: { dt: 0.001, duration: 0.3 }, backend: { name: "sdf" },
+    particles, forces: [{ type: "gravity" }],
+    obstacles: [{ id: "box", shape: { type: "inside", shape: { type: "box", center: [0.5, 0.6],
+                                                                   half_size: [0.5, 0.6] } } }],
+    output: { every: 10 },
+  };
+  const file = path.join(dir, "crowd.json");
+  require("fs").writeFileSync(file, JSON.stringify(scene));
+  const run = path.join(dir, "run");
+  execFileSync(pinsim, ["-q", "run", file, "--out", run, "--overwrite"], { stdio: "inherit" });
+  const page = path.join(dir, "crowd.html");
+  execFileSync(pinsim, ["-q", "replay", run, "--out", page], { stdio: "inherit" });
+  return page;
+}
+
+/** Trails and contact flashes start on for the pinball, off for the crowd (then ?trails=1). */
+async function checkCrowd(browser, pinball, crowd) {
+  const boxes = () => ({ trails: document.getElementById("trails").checked,
+                         flashes: document.getElementById("flashes").checked,
+                         crowded: document.body.dataset.crowded });
+  for (const [file, query, want] of [[pinball, "", { trails: true, flashes: true, crowded: "0" }],
+                                     [crowd, "", { trails: false, flashes: false, crowded: "1" }],
+                                     [crowd, "?trails=1", { trails: true, flashes: false, crowded: "1" }]]) {
+    const page = await browser.open(file, { width: 1280, height: 900, query });
+    try {
+      await page.waitForData((d) => d.status === "ok", { what: "data-status ok" });
+      const got = await page.evaluate(boxes);
+      if (JSON.stringify(got) !== JSON.stringify(want))
+        throw new web.CheckFailed(`${path.basename(file)}${query}: ${JSON.stringify(got)}, expected ${JSON.stringify(want)}`);
+      await page.checkNotBlank({ selector: "#view" });
+      await page.checkErrors();
+    } finally {
+      await page.close();
+    }
+  }
+  console.log("crowded replay: trails and contacts off by default, on by query; the pinball's on");
 }
 
 function near(a, b, tol, what) {
@@ -138,8 +186,10 @@ async function checkSize(browser, file, size, shots) {
   const file = o.page || makePage(o.pinsim, o.scene);
   const shots = process.env.PINSIM_WEB_SHOTS || null;  // keep the screenshots there
   if (shots) require("fs").mkdirSync(shots, { recursive: true });
+  const crowd = o.pinsim ? makeCrowdedPage(o.pinsim) : null;
   await web.eachBrowser([o.browser], async (b) => {
     for (const size of SIZES) await checkSize(b, file, size, shots);
+    if (crowd) await checkCrowd(b, file, crowd);
   });
   console.log("test_replay: passed");
 })().catch((e) => {
