@@ -38,6 +38,19 @@ async function main() {
   try {
     const page = await browser.open(pageFile, { width: 1280, height: 900 });
     await page.waitForData((d) => d.status === "ready", { what: "status ready", timeout: 30000 });
+    // The bar is one line at 1280 px: every control inside its 34 px, side by side, none
+    // wrapped (a wrapped text is taller than one line of its 14 px font).
+    const bar = await page.evaluate(() => {
+      const b = document.getElementById("bar").getBoundingClientRect();
+      return Array.from(document.querySelectorAll("#bar > *"))
+        .filter((e) => e.offsetParent !== null)
+        .map((e) => { const r = e.getBoundingClientRect();
+                      return { id: e.id || e.tagName, top: r.top - b.top, bottom: r.bottom - b.top,
+                               height: r.height, right: r.right, width: b.width }; });
+    });
+    for (const e of bar)
+      if (e.top < 0 || e.bottom > 34 || e.height > 30 || e.right > e.width + 0.5)
+        throw new Error("the header bar wraps or overflows at 1280 px: " + JSON.stringify(bar));
     // Play: pull the plunger 0.7 s, flip both flippers a few times.
     await page.press("Space", 700);
     for (let k = 0; k < 4; ++k) {
