@@ -54,6 +54,9 @@ std::vector<std::string> with_backend(const std::string& file, const std::string
 }
 
 RunData read_run_folder(const std::filesystem::path& dir) {
+  std::error_code ec;
+  if (!std::filesystem::exists(dir, ec))
+    throw InputError(dir.string() + ": no such run folder (pinsim run --out DIR writes one)");
   if (!is_run_dir(dir))
     throw InputError(dir.string() +
                      ": not a run folder (expected trajectory.csv or trajectory.h5 in it, as " +

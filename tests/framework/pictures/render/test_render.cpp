@@ -446,6 +446,10 @@ TEST_CASE("render and replay: a folder that is not a readable run is exit 2 nami
   CHECK_THAT(r.output.c_str(),
              Catch::Contains(empty.string() + ": not a run folder (expected "
                                               "trajectory.csv or trajectory.h5 in it"));
+  // A folder that does not exist is named as missing, not as a scene file or a bad folder.
+  r = pinsim_cli("replay " + (empty / "gone").string());
+  CHECK(r.code == 2);
+  CHECK_THAT(r.output.c_str(), Catch::Contains((empty / "gone").string() + ": no such run folder"));
   // A run folder whose trajectory.csv is cut off in a row: the file and line are named.
   const fs::path run = make_run("broken-run");
   test::write_file(run / "trajectory.csv", "t,particle,x,y,vx,vy\n0,0,0.5\n");
