@@ -6,6 +6,7 @@
 #include <linux/filter.h>
 #include <linux/seccomp.h>
 #include <signal.h>
+#include <spdlog/spdlog.h>
 #include <sys/prctl.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
@@ -14,6 +15,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstddef>
 #include <cstdlib>
 #include <cstring>
@@ -261,7 +263,10 @@ const char* Confinement::apply() const noexcept {
 }
 
 void kill_uid(uid_t uid) {
-  for (int round = 0; round < 200; ++round) {
+  // Until none is left: on a loaded machine, processes killed at once (a fork bomb's) can
+  // take seconds to be scheduled and exit; bounded by time, not by a count of rounds.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (true) {
     // kill(-1) as the uid itself reaches every process of it, and nothing else.
     const pid_t k = ::fork();
     if (k == 0) {
@@ -272,7 +277,13 @@ void kill_uid(uid_t uid) {
       int status = 0;
       ::waitpid(k, &status, 0);
     }
-    if (alive_and_reap(uid) == 0) return;
+    const int alive = alive_and_reap(uid);
+    if (alive == 0) return;
+    if (std::chrono::steady_clock::now() > until) {
+      spdlog::warn("{} process(es) of the sandbox's uid {} still alive after 20 s of SIGKILL",
+                   alive, uid);
+      return;
+    }
     ::usleep(5000);
   }
 }
