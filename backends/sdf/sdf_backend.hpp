@@ -85,9 +85,9 @@ class SdfBackend : public FieldBackend {
   /// Particles from which advance() marches them on threads when there are threads: below
   /// it the serial loop is as fast (bench/threads, docs/threads.md).
   static constexpr std::size_t kParallelParticles = 256;
-  /// Particles per chunk on threads (any value gives the same bits): each chunk is a task
-  /// (a particle's march costs 0.02-1 us and varies), and 256 keeps 10,000 balls at 40 tasks
-  /// a step, 1,000,000 springs' 501,264 particles at 1959.
+  /// Particles per chunk on threads (any value gives the same bits): each chunk is a task,
+  /// so a chunk holds enough marches (whose cost varies with what the ball meets) to
+  /// outweigh the taking of a task, and a large state still has many chunks to balance.
   static constexpr std::size_t kChunk = 256;
   /// The first particle with finite mass whose velocity travels beyond kMaxMagnitude in dt,
   /// s.n if none; in fixed chunks on threads if `threads`.

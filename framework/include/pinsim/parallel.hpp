@@ -44,8 +44,8 @@ inline int available_threads() {
 inline constexpr std::size_t kParticleChunk = 1024;
 
 /// Items from which Schedule::Even loops run on threads: below it (one ball, a small blob)
-/// the serial loop, with nothing else on the way. Waking a second thread costs a few
-/// microseconds; 4096 particles take 2-10 us in these loops.
+/// the serial loop, with nothing else on the way, since waking a second thread costs about
+/// as much as these loops' work on fewer items.
 inline constexpr std::size_t kParallelItems = 4096;
 
 /// How for_chunks hands its chunks to threads; either gives the same bits.

@@ -27,23 +27,22 @@ namespace {
 /// harmonic oscillator the energy shrinks by exactly 1/(1 + (h w)^2) per step, for any h.
 /// Pinned dofs (inv_mass 0) keep dv = 0: their rows and columns become the identity.
 /// A is symmetric for conservative forces, but not always: a damped spring's df/dx has the
-/// nonsymmetric term -kd J^T (H v)^T when the spring turns; conjugate gradients on such a
-/// system would converge to something else than A^-1 b (Eigen's ConjugateGradient with
-/// Lower|Upper, used before, multiplied by A^T). Each step therefore checks A's symmetry up
-/// to rounding (every entry against its transpose entry, whose block is found once with the
-/// pattern; see is_symmetric()) and solves a symmetric A by conjugate gradients, a
-/// nonsymmetric one by BiCGSTAB, both with a Jacobi (diagonal) preconditioner to a relative
-/// residual of 1e-12, started from the last step's dv (warm start: a smooth motion changes
-/// dv little from step to step) when that guess's residual is below |b|, else from 0. Both
-/// are written here (cg(), bicgstab(): Eigen's steps and stopping rules) over A stored as
-/// 2x2 blocks by rows (BlockSparseMatrix2: products gather, no scattered writes), with the
-/// vector updates fused into the products and a few passes per iteration, and the warm
-/// start's residual as their first. A is assembled in a block pattern built once (rebuilt
-/// only if the forces' entries move): no sorting or allocation per step; if the iterative
-/// solve fails (an indefinite K from compressed springs can make CG fail) a sparse LU
-/// solves it instead. If that fails too (a singular system, or a residual above 1e-8 of |b|), the
-/// step throws NumericError (solver_failure) rather than use an unconverged velocity. stats()
-/// reports the solves for summary.json.
+/// nonsymmetric term -kd J^T (H v)^T when the spring turns; conjugate gradients on such a system
+/// would converge to something else than A^-1 b (Eigen's ConjugateGradient with Lower|Upper
+/// multiplies by A^T). Each step therefore checks A's symmetry up to rounding (every entry against
+/// its transpose entry, whose block is found once with the pattern; see is_symmetric()) and solves
+/// a symmetric A by conjugate gradients, a nonsymmetric one by BiCGSTAB, both with a Jacobi
+/// (diagonal) preconditioner to a relative residual of 1e-12, started from the last step's dv (warm
+/// start: a smooth motion changes dv little from step to step) when that guess's residual is below
+/// |b|, else from 0. Both are written here (cg(), bicgstab(): Eigen's steps and stopping rules)
+/// over A stored as 2x2 blocks by rows (BlockSparseMatrix2: products gather, no scattered writes),
+/// with the vector updates fused into the products and a few passes per iteration, and the warm
+/// start's residual as their first. A is assembled in a block pattern built once (rebuilt only if
+/// the forces' entries move): no sorting or allocation per step; if the iterative solve fails (an
+/// indefinite K from compressed springs can make CG fail) a sparse LU solves it instead. If that
+/// fails too (a singular system, or a residual above 1e-8 of |b|), the step throws NumericError
+/// (solver_failure) rather than use an unconverged velocity. stats() reports the solves for
+/// summary.json.
 ///
 /// A converged solve can still be meaningless. CG stops at |A dv - b| <= 1e-12 |b|, and a
 /// very stiff force makes |b| huge (h^2 K v) while the soft directions of A keep eigenvalues
@@ -393,18 +392,17 @@ class ImplicitEuler : public Integrator {
     return out;
   }
 
-  /// A = M - h D - h^2 K with the pinned rows and columns replaced by the identity, in the
-  /// fixed block pattern of A_: A_ starts as M (the identity for pinned particles) and each
-  /// entry the forces emit adds, times -h^2 (df/dx) or -h (df/dv), into its place in A_'s
-  /// values (found once, by pattern()), so a step sorts and allocates nothing. Also
-  /// kv_ = K v0. The forces hand their entries (16 per spring, as 4 2x2 blocks) straight to
-  /// a Scatter, which checks each one's position against the pattern's and adds it into its
-  /// place (and into K v0, a block's row times v0 at a time), in the order the forces emit
-  /// them: the same sums in the same order every step, whether the entries come streamed
-  /// or kept (JacobianEntries, the pattern's first step). Only
-  /// if the positions or the pinned dofs differ from the pattern's (the first step, a force
-  /// whose entries change) are the Jacobians asked for again, kept (JacobianEntries), and
-  /// the pattern rebuilt from them.
+  /// A = M - h D - h^2 K with the pinned rows and columns replaced by the identity, in the fixed
+  /// block pattern of A_: A_ starts as M (the identity for pinned particles) and each entry the
+  /// forces emit adds, times -h^2 (df/dx) or -h (df/dv), into its place in A_'s values (found once,
+  /// by pattern()), so a step sorts and allocates nothing. Also kv_ = K v0. The forces hand their
+  /// entries (16 per spring, as 4 2x2 blocks) straight to a Scatter, which checks each one's
+  /// position against the pattern's and adds it into its place (and into K v0, a block's row times
+  /// v0 at a time), in the order the forces emit them: the same sums in the same order every step,
+  /// whether the entries come streamed or kept (JacobianEntries, the pattern's first step). Only if
+  /// the positions or the pinned dofs differ from the pattern's (the first step, a force whose
+  /// entries change) are the Jacobians asked for again, kept (JacobianEntries), and the pattern
+  /// rebuilt from them.
   void assemble(Simulation& sim, const State& s, Eigen::Index n, double h,
                 const Eigen::Map<const Eigen::VectorXd>& v0) {
     auto start = [&] {

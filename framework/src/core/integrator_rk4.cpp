@@ -13,8 +13,8 @@ namespace {
 /// (v_after - dx/h) is added to v_n + dv, after correct_impacts has moved each impact's
 /// reflection to the velocity at the time of impact (as for velocity Verlet): second order
 /// through bounces (fourth is out of reach for a drift at one velocity). Fourth order
-/// without contacts; on the harmonic
-/// oscillator |R(i y)|^2 = 1 - y^6/72 + y^8/576, y = h w, stable for y <= 2 sqrt(2).
+/// without contacts; on the harmonic oscillator |R(i y)|^2 = 1 - y^6/72 + y^8/576, y = h w,
+/// stable for y <= 2 sqrt(2).
 class Rk4 : public Integrator {
  public:
   void step(Simulation& sim, double h) override {

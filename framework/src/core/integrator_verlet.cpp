@@ -13,8 +13,8 @@ namespace {
 /// correct_impacts fixes the impulse so a bounce keeps the method second order.
 /// Velocity-dependent forces (damping): the closing half kick needs f(x_{n+1}, v_{n+1}), and
 /// f(x_{n+1}, v_{n+1/2}) is off by O(h), which leaves the method first order. One predictor
-///   v* = v_{n+1/2} + h/2 M^-1 f(x_{n+1}, v_{n+1/2}),  v_{n+1} = v_{n+1/2} + h/2 M^-1 f(x_{n+1},
-///   v*)
+///   v* = v_{n+1/2} + h/2 M^-1 f(x_{n+1}, v_{n+1/2}),
+///   v_{n+1} = v_{n+1/2} + h/2 M^-1 f(x_{n+1}, v*)
 /// makes the force error O(h^2) and restores second order, at one more force evaluation per
 /// step, spent only when a force is dissipative (or declares no energy, so may depend on v).
 class VelocityVerlet : public Integrator {

@@ -66,8 +66,8 @@ std::unique_ptr<Integrator> make_rk4();
 struct ImplicitEulerOptions {
   long cg_max_iterations = 0;  ///< 0: max(100, 4 x dofs)
   /// Jacobian items (a 2x2 block or a single entry counts one) from which a concurrent force
-  /// scatters into its own copy of A on a
-  /// thread of its own (the first such force excepted); tests set it high to compare.
+  /// scatters into its own copy of A on a thread of its own (the first such force excepted); tests
+  /// set it high to compare.
   std::size_t own_group_entries = 16384;
 };
 /// Linearized backward Euler of Baraff & Witkin 1998 (integrator_implicit_euler.cpp).

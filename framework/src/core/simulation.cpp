@@ -82,7 +82,7 @@ Simulation::Simulation(const Scene& scene, PluginLoader& loader, const RunOption
 #ifdef PINSIM_WITH_TBB
   // The plugins' parallel loops (oneTBB) run on at most threads_ threads while this
   // simulation lives: a process-wide limit, set once, so a step pays nothing for it (a
-  // task_arena entered every step cost 50-100 ns, half of a one-ball step at rest). With
+  // task_arena would be entered every step, at a cost comparable to a one-ball step). With
   // several simulations alive the smallest limit holds for all; results do not change.
   limit_ = std::make_unique<ThreadLimit>(threads_);
 #endif
@@ -126,7 +126,7 @@ void Simulation::set_input(const std::string& name, bool pressed) {
 void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f) {
   const Eigen::Index n = s.x.cols();
   const bool one_chunk = n < static_cast<Eigen::Index>(kParallelItems);
-  if (one_chunk) {  // the serial code, as before threads (a one-ball step is 0.2 us)
+  if (one_chunk) {  // one chunk: the serial loop, with nothing else on the way
     f.setZero(2, n);
   } else {
     f.resize(2, n);

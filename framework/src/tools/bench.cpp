@@ -106,8 +106,7 @@ Result run_point(const Case& c, const Point& p, int repeats, PluginLoader& loade
                  const Samples* ref) {
   Result res;
   const Scene acc = sweep::make_scene(c.doc, settings(p, false), c.name, c.base);
-  // No step, no measurement: such a point once reported error 0 and time 0 as "ok", the
-  // sweep's "best" error.
+  // No step, no measurement: error 0 and time 0 would read as the sweep's best point.
   if (acc.steps() == 0)
     throw InputError(c.where + ".dt: " + num(p.dt) + " s makes no step in the scene's " +
                      num(acc.duration) + " s (a dt must be at most the duration)");

@@ -104,7 +104,7 @@ Outcome run_point(const Case& c, const Point& p, PluginLoader& loader) {
   Simulation sim(scene, loader);
   const bool dist = sim.backend().has_distance();
   const uint64_t N = scene.steps();
-  if (N == 0) {  // no step: nothing was tested (such a point was once classed "stable")
+  if (N == 0) {  // no step: nothing was tested, so the point is an error, never "stable"
     o.cls =
         "error: dt " + num(p.dt) + " s makes no step in the scene's " + num(scene.duration) + " s";
     return o;
