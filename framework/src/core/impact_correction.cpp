@@ -4,10 +4,12 @@
 
 namespace pinsim {
 
-void correct_impacts(State& s, const std::vector<pinsim_event>& events, std::size_t first,
-                     double t0, double c_h, const Eigen::Matrix2Xd& a_n) {
-  for (std::size_t k = first; k < events.size(); ++k) {
-    const pinsim_event& e = events[k];
+void correct_impacts(State& s, std::span<const pinsim_event> contacts, double t0,
+                     const ImpactReference& ref) {
+  if (ref.a_n == nullptr) return;
+  const Eigen::Matrix2Xd& a_n = *ref.a_n;
+  const double c_h = ref.c_h;
+  for (const pinsim_event& e : contacts) {
     if (e.obstacle < 0 || e.particle < 0 || !(e.vn_before < 0.0)) continue;
     const auto i = static_cast<Eigen::Index>(e.particle);
     if (i >= s.v.cols() || !(s.inv_mass[i] > 0.0)) continue;

@@ -1,6 +1,6 @@
 // The two Euler methods of the seed, with the position update done by the backend.
 #include "core/integrators.hpp"
-#include "core/simulation.hpp"
+#include "core/step_context.hpp"
 
 namespace pinsim {
 namespace {
@@ -10,10 +10,9 @@ namespace {
 /// For constant gravity y_N = y_0 + v_0 T - g T^2/2 - g h T/2: first order, error -g h T/2.
 class SymplecticEuler : public Integrator {
  public:
-  void step(Simulation& sim, double h) override {
-    State& s = sim.state();
-    sim.compute_forces(s, f_);
-    sim.kick_drift(s, f_, h);  // kick(s, f_, h) then sim.drift(s, h), in fewer passes
+  Kick before_drift(StepContext& ctx, double h) override {
+    ctx.compute_forces(ctx.state(), f_);
+    return {&f_, h};  // the kick; the drift then ends the step
   }
 
  private:
@@ -26,11 +25,15 @@ class SymplecticEuler : public Integrator {
 /// step: unstable for every h without damping.
 class ExplicitEuler : public Integrator {
  public:
-  void step(Simulation& sim, double h) override {
-    State& s = sim.state();
-    sim.compute_forces(s, f_);
+  Kick before_drift(StepContext& ctx, double /*h*/) override {
+    const State& s = ctx.state();
+    ctx.compute_forces(s, f_);
     accelerations(s, f_, a_);
-    sim.drift(s, h);
+    return {};
+  }
+  bool acts_after_drift() const override { return true; }
+  void after_drift(StepContext& ctx, double h) override {
+    State& s = ctx.state();
     per_particle(s.v.cols(), [&](Eigen::Index b, Eigen::Index n) {
       s.v.middleCols(b, n) += h * a_.middleCols(b, n);
     });

@@ -15,6 +15,7 @@
 #include "core/block_sparse_matrix.hpp"
 #include "core/integrators.hpp"
 #include "core/simulation.hpp"
+#include "core/step_context.hpp"
 #include "pinsim/parallel.hpp"
 
 namespace pinsim {
@@ -62,9 +63,9 @@ class ImplicitEuler : public Integrator {
  public:
   explicit ImplicitEuler(const ImplicitEulerOptions& o) : options_(o) {}
 
-  void step(Simulation& sim, double h) override {
-    State& s = sim.state();
-    sim.compute_forces(s, f_);
+  Kick before_drift(StepContext& ctx, double h) override {
+    State& s = ctx.state();
+    ctx.compute_forces(s, f_);
     const Eigen::Index n = 2 * static_cast<Eigen::Index>(s.size());
     const Eigen::Map<const Eigen::VectorXd> v0(s.v.data(), n);
 
@@ -79,7 +80,7 @@ class ImplicitEuler : public Integrator {
     const Eigen::VectorXd& m = m_;
     // A, and K v_n straight from the entries; b = h (f_n + h K v_n), pinned rows zeroed.
     if (kv_.size() != n) kv_.resize(n);
-    assemble(sim, s, n, h, v0);
+    assemble(ctx, s, n, h, v0);
     for (Eigen::VectorXd* x : {&b_, &r_, &r0_, &p_, &v_, &y_, &z_, &s_, &t_, &inv_diag_})
       if (x->size() != n) x->resize(n);
     const double* f = f_.data();
@@ -142,13 +143,13 @@ class ImplicitEuler : public Integrator {
                         method, krylov_residual, iterations,
                         factored ? fmt::format("left relative residual {:.3g}", residual)
                                  : std::string("could not factorize the system (singular?)"),
-                        stiffness_text(sim, s, h)),
-            sim.step_index() + 1, s.t, most_demanding(b, m), blame(sim, s, h));
+                        stiffness_text(ctx, s, h)),
+            ctx.step(), s.t, most_demanding(b, m), blame(ctx, s, h));
     }
-    check_accuracy(sim, s, b, dv, m, h);
+    check_accuracy(ctx, s, b, dv, m, h);
     worst_residual_ = std::max(worst_residual_, residual);
     Eigen::Map<Eigen::VectorXd>(s.v.data(), n) += dv;
-    sim.drift(s, h);
+    return {};  // the drift moves with v_{n+1} and ends the step
   }
 
   /// r = b_ - A x; returns |r|^2.
@@ -403,7 +404,7 @@ class ImplicitEuler : public Integrator {
   /// the positions or the pinned dofs differ from the pattern's (the first step, a force whose
   /// entries change) are the Jacobians asked for again, kept (JacobianEntries), and the pattern
   /// rebuilt from them.
-  void assemble(Simulation& sim, const State& s, Eigen::Index n, double h,
+  void assemble(StepContext& ctx, const State& s, Eigen::Index n, double h,
                 const Eigen::Map<const Eigen::VectorXd>& v0) {
     auto start = [&] {
       for_rows([&](int64_t lo, int64_t hi) {
@@ -417,14 +418,14 @@ class ImplicitEuler : public Integrator {
         }
       });
     };
-    const std::size_t forces = sim.forces().size();
+    const std::size_t forces = ctx.forces().size();
     bool done = false;
     if (same_size_and_pins(n) && px_.size() == forces) {
       start();
       done = scatter_groups(n, h, v0, [&](std::size_t k, Scatter& x, Scatter& v) {
-        sim.jacobians_of(k, s, x.sink(), v.sink());
+        ctx.jacobians(k, s, x.sink(), v.sink());
       });
-      sim.count_jacobian_evaluation();
+      ctx.count_jacobian_evaluation();
     }
     if (!done) {
       ex_.resize(forces);
@@ -432,10 +433,10 @@ class ImplicitEuler : public Integrator {
       for (std::size_t k = 0; k < forces; ++k) {
         ex_[k].clear();
         ev_[k].clear();
-        sim.jacobians_of(k, s, ex_[k].sink(), ev_[k].sink());
+        ctx.jacobians(k, s, ex_[k].sink(), ev_[k].sink());
       }
-      sim.count_jacobian_evaluation();
-      pattern(n, sim);
+      ctx.count_jacobian_evaluation();
+      pattern(n, ctx);
       ++pattern_builds_;
       start();
       scatter_groups(n, h, v0, [&](std::size_t k, Scatter& x, Scatter& v) {
@@ -631,7 +632,7 @@ class ImplicitEuler : public Integrator {
     return true;
   }
 
-  void pattern(Eigen::Index n, const Simulation& sim) {
+  void pattern(Eigen::Index n, const StepContext& ctx) {
     free_.assign(static_cast<std::size_t>(n), false);
     for (Eigen::Index i = 0; i < n; ++i) free_[static_cast<std::size_t>(i)] = m_[i] > 0.0;
     auto kept = [&](Eigen::Index r, Eigen::Index c) { return m_[r] > 0.0 && m_[c] > 0.0; };
@@ -696,7 +697,7 @@ class ImplicitEuler : public Integrator {
     for (std::size_t k = 0; k < ex_.size(); ++k) {
       slots(ex_[k], px_[k]);
       slots(ev_[k], pv_[k]);
-      if (!sim.forces()[k]->concurrent() || items(k) < options_.own_group_entries) continue;
+      if (!ctx.forces()[k]->concurrent() || items(k) < options_.own_group_entries) continue;
       if (first) {
         first = false;
         continue;
@@ -717,7 +718,7 @@ class ImplicitEuler : public Integrator {
   /// Refuses a solve whose velocity error bound (sum r_i^2 / m_i)^1/2 exceeds
   /// 1e-3 (|v_n|_M^2 + |dv|_M^2)^1/2 (see above), with r = A dv - b computed afresh (not the
   /// Krylov iteration's own residual, which rounding can make drift from it).
-  void check_accuracy(Simulation& sim, const State& s, const Eigen::VectorXd& b,
+  void check_accuracy(StepContext& ctx, const State& s, const Eigen::VectorXd& b,
                       const Eigen::VectorXd& dv, const Eigen::VectorXd& m, double h) {
     const double* vel = s.v.data();
     // Per chunk of rows: the sums, and the dof with the largest r_i^2 / m_i (a NaN is the
@@ -763,8 +764,8 @@ class ImplicitEuler : public Integrator {
                     "= {:.6g} (the "
                     "system M - h df/dv - h^2 df/dx is too ill-conditioned for double "
                     "precision){}",
-                    std::sqrt(r2), 1e-3 * std::sqrt(v2), stiffness_text(sim, s, h)),
-        sim.step_index() + 1, s.t, at / 2, blame(sim, s, h));
+                    std::sqrt(r2), 1e-3 * std::sqrt(v2), stiffness_text(ctx, s, h)),
+        ctx.step(), s.t, at / 2, blame(ctx, s, h));
   }
 
   /// Whether e takes the worst dof's place (none yet: `none`): larger, and the first NaN
@@ -789,19 +790,17 @@ class ImplicitEuler : public Integrator {
     return at < 0 ? -1 : at / 2;
   }
 
-  static std::string blame(Simulation& sim, const State& s, double h) {
+  static std::string blame(StepContext& ctx, const State& s, double h) {
     double w = 0.0;
-    const int64_t k = sim.stiffest_force(s, h, w);
-    return k < 0 ? std::string("integrator 'implicit_euler'")
-                 : sim.force_label(static_cast<std::size_t>(k));
+    const std::string k = ctx.stiffest_force(s, h, w);
+    return k.empty() ? std::string("integrator 'implicit_euler'") : k;
   }
 
-  static std::string stiffness_text(Simulation& sim, const State& s, double h) {
+  static std::string stiffness_text(StepContext& ctx, const State& s, double h) {
     double w = 0.0;
-    const int64_t k = sim.stiffest_force(s, h, w);
-    if (k < 0) return "";
-    return fmt::format("; stiffest force: {} ((h^2 |df/dx| + h |df/dv|) / m up to {:.6g})",
-                       sim.force_label(static_cast<std::size_t>(k)), w);
+    const std::string k = ctx.stiffest_force(s, h, w);
+    if (k.empty()) return "";
+    return fmt::format("; stiffest force: {} ((h^2 |df/dx| + h |df/dv|) / m up to {:.6g})", k, w);
   }
 
   nlohmann::json stats() const override {

@@ -1,6 +1,6 @@
 // Classical fourth-order Runge-Kutta, with the position update done by the backend.
 #include "core/integrators.hpp"
-#include "core/simulation.hpp"
+#include "core/step_context.hpp"
 
 namespace pinsim {
 namespace {
@@ -17,8 +17,8 @@ namespace {
 /// stable for y <= 2 sqrt(2).
 class Rk4 : public Integrator {
  public:
-  void step(Simulation& sim, double h) override {
-    State& s = sim.state();
+  Kick before_drift(StepContext& ctx, double h) override {
+    State& s = ctx.state();
     const Eigen::Index n = s.x.cols();
     // Every vector update below is per particle, in fixed chunks (the same bits for any
     // thread count); B(m) is the chunk's columns of m.
@@ -30,7 +30,7 @@ class Rk4 : public Integrator {
       v0_.middleCols(b, k) = s.v.middleCols(b, k);
     });
 
-    sim.compute_forces(s, f_);
+    ctx.compute_forces(s, f_);
     accelerations(s, f_, a1_);
 
     stage_.t = s.t + 0.5 * h;
@@ -39,7 +39,7 @@ class Rk4 : public Integrator {
       stage_.v.middleCols(b, k) = v0_.middleCols(b, k) + 0.5 * h * a1_.middleCols(b, k);
       v2_.middleCols(b, k) = stage_.v.middleCols(b, k);
     });
-    sim.compute_forces(stage_, f_);
+    ctx.compute_forces(stage_, f_);
     accelerations(s, f_, a2_);
 
     each([&](Eigen::Index b, Eigen::Index k) {
@@ -47,7 +47,7 @@ class Rk4 : public Integrator {
       stage_.v.middleCols(b, k) = v0_.middleCols(b, k) + 0.5 * h * a2_.middleCols(b, k);
       v3_.middleCols(b, k) = stage_.v.middleCols(b, k);
     });
-    sim.compute_forces(stage_, f_);
+    ctx.compute_forces(stage_, f_);
     accelerations(s, f_, a3_);
 
     stage_.t = s.t + h;
@@ -55,7 +55,7 @@ class Rk4 : public Integrator {
       stage_.x.middleCols(b, k) = x0_.middleCols(b, k) + h * v3_.middleCols(b, k);
       stage_.v.middleCols(b, k) = v0_.middleCols(b, k) + h * a3_.middleCols(b, k);
     });
-    sim.compute_forces(stage_, f_);
+    ctx.compute_forces(stage_, f_);
     accelerations(s, f_, a4_);
 
     each([&](Eigen::Index b, Eigen::Index k) {
@@ -66,15 +66,19 @@ class Rk4 : public Integrator {
                                           2.0 * a3_.middleCols(b, k) + a4_.middleCols(b, k));
       s.v.middleCols(b, k) = vbar_.middleCols(b, k);
     });
-    const std::size_t first_event = sim.events().size();
-    sim.drift(s, h);
-    // For a constant force vbar = v_n + (h/2) a_n, Verlet's drift velocity, so a contact in
-    // the drift reflected the velocity of time h/2, not of the impact: the same correction
-    // (exact for a constant force, O(h^2) per bounce otherwise).
-    if (sim.events().size() > first_event)
-      correct_impacts(s, sim.events(), first_event, s.t, 0.5 * h, a1_);
-    // the contacts' velocity change rides on top
-    each([&](Eigen::Index b, Eigen::Index k) {
+    return {};  // the drift moves with vbar
+  }
+  // For a constant force vbar = v_n + (h/2) a_n, Verlet's drift velocity, so a contact in the
+  // drift reflected the velocity of time h/2, not of the impact: the same correction (exact
+  // for a constant force, O(h^2) per bounce otherwise).
+  ImpactReference impact_reference(const State& /*s*/, double h) override {
+    return {&a1_, 0.5 * h};
+  }
+  bool acts_after_drift() const override { return true; }
+  // The contacts' velocity change rides on top: v_{n+1} = v_after + (v_n + dv - vbar).
+  void after_drift(StepContext& ctx, double /*h*/) override {
+    State& s = ctx.state();
+    per_particle(s.v.cols(), [&](Eigen::Index b, Eigen::Index k) {
       s.v.middleCols(b, k) += v0_.middleCols(b, k) + dv_.middleCols(b, k) - vbar_.middleCols(b, k);
     });
   }

@@ -1,6 +1,6 @@
 // Velocity Verlet, with the position update done by the backend.
 #include "core/integrators.hpp"
-#include "core/simulation.hpp"
+#include "core/step_context.hpp"
 
 namespace pinsim {
 namespace {
@@ -19,26 +19,27 @@ namespace {
 /// step, spent only when a force is dissipative (or declares no energy, so may depend on v).
 class VelocityVerlet : public Integrator {
  public:
-  void step(Simulation& sim, double h) override {
+  Kick before_drift(StepContext& ctx, double h) override {
     if (!checked_) {
       checked_ = true;
-      for (const auto& f : sim.forces())
+      for (const auto& f : ctx.forces())
         velocity_dependent_ = velocity_dependent_ || f->velocity_dependent();
     }
-    State& s = sim.state();
-    sim.compute_forces(s, f_);
-    kick(s, f_, 0.5 * h);
-    const std::size_t first_event = sim.events().size();
-    sim.drift(s, h);
-    if (sim.events().size() > first_event) {
-      accelerations(s, f_, a_);
-      correct_impacts(s, sim.events(), first_event, s.t, 0.5 * h, a_);
-    }
-    sim.compute_forces(s, f_);
+    ctx.compute_forces(ctx.state(), f_);
+    return {&f_, 0.5 * h};
+  }
+  ImpactReference impact_reference(const State& s, double h) override {
+    accelerations(s, f_, a_);
+    return {&a_, 0.5 * h};
+  }
+  bool acts_after_drift() const override { return true; }
+  void after_drift(StepContext& ctx, double h) override {
+    State& s = ctx.state();
+    ctx.compute_forces(s, f_);
     if (velocity_dependent_) {
       predicted_ = s;
       kick(predicted_, f_, 0.5 * h);
-      sim.compute_forces(predicted_, f_);
+      ctx.compute_forces(predicted_, f_);
     }
     kick(s, f_, 0.5 * h);
   }

@@ -6,6 +6,7 @@
 #include <memory>
 #include <pinsim/parallel.hpp>
 #include <pinsim/state.hpp>
+#include <span>
 #include <vector>
 
 #include "core/integrator.hpp"
@@ -34,24 +35,54 @@ inline void accelerations(const State& s, const Eigen::Matrix2Xd& f, Eigen::Matr
   });
 }
 
-/// v += h M^-1 f, per particle (pinned particles have inv_mass 0 and keep their velocity).
-inline void kick(State& s, const Eigen::Matrix2Xd& f, double h) {
-  per_particle(s.x.cols(), [&](Eigen::Index b, Eigen::Index n) {
-    for (Eigen::Index i = b; i < b + n; ++i) s.v.col(i) += (h * s.inv_mass[i]) * f.col(i);
-  });
+/// The kick v += h M^-1 f per particle (pinned particles have inv_mass 0 and keep their
+/// velocity); with `copy`, copy = the kicked velocities too (resized), in the same pass.
+/// Through plain pointers: through the matrices' members the compiler reloads their data
+/// pointers after every store.
+inline void kick(State& s, const Eigen::Matrix2Xd& f, double h, Eigen::Matrix2Xd* copy = nullptr) {
+  double* v = s.v.data();
+  const double* fd = f.data();
+  const double* w = s.inv_mass.data();
+  double* out = nullptr;
+  if (copy != nullptr) {
+    copy->resize(2, s.v.cols());
+    out = copy->data();
+  }
+  for_chunks(
+      static_cast<std::size_t>(s.v.cols()), kParticleChunk,
+      [=](std::size_t, std::size_t b, std::size_t e) {
+        if (out == nullptr) {
+          for (std::size_t i = b; i < e; ++i) {
+            const double a = h * w[i];
+            v[2 * i] += a * fd[2 * i];
+            v[2 * i + 1] += a * fd[2 * i + 1];
+          }
+          return;
+        }
+        for (std::size_t i = b; i < e; ++i) {
+          const double a = h * w[i];
+          const double vx = v[2 * i] + a * fd[2 * i], vy = v[2 * i + 1] + a * fd[2 * i + 1];
+          v[2 * i] = vx;
+          v[2 * i + 1] = vy;
+          out[2 * i] = vx;
+          out[2 * i + 1] = vy;
+        }
+      },
+      Schedule::Even);
 }
 
-/// Impact correction (impact_correction.cpp). Corrects the impulses of the obstacle
-/// contacts events[first..] of a drift that started at t0 and moved every particle with the
-/// constant velocity v_n + c h a_n, when the particle's true velocity at the time of impact t0 +
-/// tau is v_n + tau a_n (a_n = M^-1 f(x_n)). The backend reflected the normal velocity vn of the
-/// drift velocity; the impulse it should have reflected is vn + (tau - c h) a_n.n, so each event
-/// adds
+/// The impact correction (impact_correction.cpp) of the obstacle contacts `contacts` of a
+/// drift that started at t0 and moved every particle with the constant velocity
+/// v_n + c h a_n (ref), when the particle's true velocity at the time of impact t0 + tau is
+/// v_n + tau a_n (a_n = M^-1 f(x_n)). The backend reflected the normal velocity vn of the
+/// drift velocity; the impulse it should have reflected is vn + (tau - c h) a_n.n, so each
+/// contact adds
 ///   dv = -(1 + e) (tau - c h) (a_n.n) n,   1 + e = (vn_after - vn_before) / -vn_before.
 /// Without it a bounce leaves an O(h) velocity error and a second-order method drops to
 /// first order (see docs/bench_and_stress.md); with it the error per bounce is O(h^2).
-void correct_impacts(State& s, const std::vector<pinsim_event>& events, std::size_t first,
-                     double t0, double c_h, const Eigen::Matrix2Xd& a_n);
+/// Nothing when ref has no a_n.
+void correct_impacts(State& s, std::span<const pinsim_event> contacts, double t0,
+                     const ImpactReference& ref);
 
 /// Symplectic Euler, kick then drift (integrator_euler.cpp).
 std::unique_ptr<Integrator> make_symplectic_euler();

@@ -14,6 +14,7 @@
 #include "core/instances.hpp"
 #include "core/integrator.hpp"
 #include "core/integrators.hpp"
+#include "core/step_context.hpp"
 
 namespace pinsim {
 namespace {
@@ -148,57 +149,26 @@ void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f) {
   if (non_finite.load(std::memory_order_relaxed)) check_finite_forces(s, f);
 }
 
-void Simulation::drift(State& s, double dt) {
+std::span<const pinsim_event> Simulation::drift(State& s, double dt) {
+  const std::size_t first = events_.size();
   const pinsim_event_sink sink{&events_, &emit_event};
-  const bool own = &s == &state_;
-  if (own) checks_.before_drift(s);
   backend_->advance(s, dt, &sink);
-  if (own) checks_.after_drift(s);
-}
-
-void Simulation::kick_drift(State& s, const Eigen::Matrix2Xd& f, double h) {
-  if (&s != &state_) {
-    kick(s, f, h);
-    drift(s, h);
-    return;
-  }
-  checks_.kick_before_drift(s, f, h);
-  const pinsim_event_sink sink{&events_, &emit_event};
-  backend_->advance(s, h, &sink);
-  checks_.after_last_drift();
+  return std::span<const pinsim_event>(events_).subspan(first);
 }
 
 void Simulation::assemble_jacobians(const State& s, Eigen::SparseMatrix<double>& dfdx,
                                     Eigen::SparseMatrix<double>& dfdv) {
-  const auto n = static_cast<Eigen::Index>(2 * s.size());
+  JacobianEntries ex, ev;
+  for (std::size_t k = 0; k < forces_.size(); ++k) jacobians_of(k, s, ex.sink(), ev.sink());
+  ++jacobian_evals_;
   std::vector<Eigen::Triplet<double>> tx, tv;
-  jacobian_triplets(s, tx, tv);
+  ex.append_triplets(tx);
+  ev.append_triplets(tv);
+  const auto n = static_cast<Eigen::Index>(2 * s.size());
   dfdx.resize(n, n);
   dfdv.resize(n, n);
   dfdx.setFromTriplets(tx.begin(), tx.end());
   dfdv.setFromTriplets(tv.begin(), tv.end());
-}
-
-void Simulation::jacobian_triplets(const State& s, std::vector<Eigen::Triplet<double>>& tx,
-                                   std::vector<Eigen::Triplet<double>>& tv) {
-  JacobianEntries ex, ev;
-  jacobian_entries(s, ex, ev);
-  tx.clear();
-  tv.clear();
-  ex.append_triplets(tx);
-  ev.append_triplets(tv);
-}
-
-void Simulation::jacobian_entries(const State& s, JacobianEntries& ex, JacobianEntries& ev) {
-  ex.clear();
-  ev.clear();
-  jacobians(s, ex.sink(), ev.sink());
-}
-
-void Simulation::jacobians(const State& s, const pinsim_triplet_sink& sx,
-                           const pinsim_triplet_sink& sv) {
-  for (std::size_t k = 0; k < forces_.size(); ++k) jacobians_of(k, s, sx, sv);
-  ++jacobian_evals_;
 }
 
 void Simulation::jacobians_of(std::size_t k, const State& s, const pinsim_triplet_sink& sx,
@@ -286,18 +256,44 @@ bool Simulation::energy_complete() const {
 }
 
 void Simulation::step() {
+  const double h = scene_.dt;
   // Time at the end of the step from the step count, so t carries no accumulated rounding.
-  const double t_end = static_cast<double>(step_ + 1) * scene_.dt;
+  const double t_end = static_cast<double>(step_ + 1) * h;
   using Clock = std::chrono::steady_clock;
   Clock::time_point t0, t1;  // RunOptions::profile: three branches a step without it
   if (profiling_) t0 = Clock::now();
+  // Why the step does not depend on threads_: the stages run one after another on this
+  // thread, and the loops within them (the forces', the integrator's, the backend's, the
+  // checks') split their particles or elements into chunks fixed by the counts alone and
+  // combine what they sum in chunk order (docs/threads.md).
+  StepContext ctx(*this);
   events_.clear();
-  // Plugins' parallel loops split their work in fixed chunks and combine them in a fixed
-  // order, so the step does not depend on threads_ (docs/threads.md).
-  integrator_->step(*this, scene_.dt);
+
+  // 1. Forces, and the integrator's velocity updates up to the drift.
+  const Kick kick = integrator_->before_drift(ctx, h);
+  // 2. Kick: the last of those updates, v += h M^-1 f, in one pass with the checks' copy of
+  //    the velocities entering the drift.
+  if (kick.f != nullptr)
+    pinsim::kick(state_, *kick.f, kick.h, &checks_.entering_drift());
+  else
+    checks_.before_drift(state_);
+  // 3. Drift through the backend: the positions, and the contacts on the way.
+  const std::span<const pinsim_event> contacts = drift(state_, h);
+  const bool acts_after = integrator_->acts_after_drift();
+  if (acts_after)
+    checks_.after_drift(state_);
+  else
+    checks_.after_last_drift();
+  // 4. Impact correction: each contact's impulse moved to the velocity at its time.
+  if (!contacts.empty())
+    correct_impacts(state_, contacts, state_.t, integrator_->impact_reference(state_, h));
+  // 5. The integrator's velocity updates after the drift (closing kicks).
+  if (acts_after) integrator_->after_drift(ctx, h);
+  // 6. Checks: a finite state, and each particle's kinetic energy within the growth bound.
   const StepFinding found = checks_.check(state_);
   if (profiling_) t1 = Clock::now();
   if (found) throw_step_finding(found, t_end);
+  // 7. Bookkeeping: the time, the step count, the total energy every checks.energy_every.
   state_.t = t_end;
   ++step_;
   if (step_ % scene_.energy_every == 0) check_energy();
@@ -306,6 +302,36 @@ void Simulation::step() {
     profile_.threaded_s += std::chrono::duration<double>(t1 - t0).count();
     profile_.step_s += std::chrono::duration<double>(Clock::now() - t0).count();
   }
+}
+
+// Stages 1 to 5 of Simulation::step, in its order, without the checks' copies.
+void Integrator::step(Simulation& sim, double h) {
+  StepContext ctx(sim);
+  State& s = sim.state_;
+  sim.events_.clear();
+  const Kick k = before_drift(ctx, h);
+  if (k.f != nullptr) kick(s, *k.f, k.h);
+  const std::span<const pinsim_event> contacts = sim.drift(s, h);
+  if (!contacts.empty()) correct_impacts(s, contacts, s.t, impact_reference(s, h));
+  if (acts_after_drift()) after_drift(ctx, h);
+}
+
+State& StepContext::state() const { return sim_.state_; }
+uint64_t StepContext::step() const { return sim_.step_ + 1; }
+const std::vector<std::unique_ptr<ForceInstance>>& StepContext::forces() const {
+  return sim_.forces_;
+}
+void StepContext::compute_forces(const State& s, Eigen::Matrix2Xd& f) const {
+  sim_.compute_forces(s, f);
+}
+void StepContext::jacobians(std::size_t k, const State& s, const pinsim_triplet_sink& dfdx,
+                            const pinsim_triplet_sink& dfdv) const {
+  sim_.jacobians_of(k, s, dfdx, dfdv);
+}
+void StepContext::count_jacobian_evaluation() const { ++sim_.jacobian_evals_; }
+std::string StepContext::stiffest_force(const State& s, double h, double& weight) const {
+  const int64_t k = sim_.stiffest_force(s, h, weight);
+  return k < 0 ? std::string() : sim_.force_label(static_cast<std::size_t>(k));
 }
 
 }  // namespace pinsim

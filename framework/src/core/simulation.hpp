@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <memory>
 #include <pinsim/state.hpp>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -20,6 +21,7 @@
 namespace pinsim {
 
 class Integrator;
+class StepContext;
 
 /// A run that went numerically wrong: what kind of failure, and where it began.
 class NumericError : public std::runtime_error {
@@ -65,12 +67,12 @@ struct RunOptions {
 };
 
 /// Wall time of the steps so far (RunOptions::profile), and of the parts of them that run
-/// their loops on threads when there are threads: the integrator's step (its forces, its
-/// per-particle passes, the drift) and the after-step check. The rest (the energy check
-/// every checks.energy_every steps, the bookkeeping of step(); not the recorder's work) is
-/// serial. Serial work inside a part (implicit Euler's solve, a plugin's loop without
-/// for_chunks, the sdf backend's chunk sums) counts as threaded, so 1 - threaded / step is
-/// a lower bound of the serial fraction.
+/// their loops on threads when there are threads: Simulation::step's stages up to and with
+/// its checks (the forces, the integrator's per-particle passes, the kick, the drift, the
+/// after-step check). The rest (the energy check every checks.energy_every steps, the
+/// bookkeeping of step(); not the recorder's work) is serial. Serial work inside a part (implicit
+/// Euler's solve, a plugin's loop without for_chunks, the sdf backend's chunk sums) counts as
+/// threaded, so 1 - threaded / step is a lower bound of the serial fraction.
 struct StepProfile {
   uint64_t steps = 0;
   double step_s = 0.0;
@@ -90,11 +92,14 @@ class Simulation {
   Simulation(const Scene& scene, PluginLoader& loader, const RunOptions& options = {});
   ~Simulation();
 
-  /// Advances one time step dt. The step owns its contact events: it clears events() first,
-  /// then the backend adds the step's contacts (Box2D v3's b2World_Step does the same).
-  /// Throws NumericError on NaN/Inf or a kinetic energy growing past checks.kinetic_growth
-  /// (both checked every step), or a total energy past checks.energy_blowup (every
-  /// checks.energy_every steps). The error names the particle and the plugin involved.
+  /// Advances one time step dt, in stages (listed in simulation.cpp): forces, kick, the
+  /// backend's drift, the impact correction of its contacts, the integrator's updates after
+  /// the drift, checks, bookkeeping. The step owns its contact events: it clears events()
+  /// first, then the backend adds the step's contacts (Box2D v3's b2World_Step does the
+  /// same). Throws NumericError on NaN/Inf or a kinetic energy growing past
+  /// checks.kinetic_growth (both checked every step), or a total energy past
+  /// checks.energy_blowup (every checks.energy_every steps). The error names the particle
+  /// and the plugin involved.
   void step();
 
   /// Presses or releases a named input (a flipper, the plunger) at the current state time,
@@ -105,47 +110,18 @@ class Simulation {
 
   /// f = sum of all forces at state s (f is resized to 2xN and zeroed first).
   void compute_forces(const State& s, Eigen::Matrix2Xd& f);
-  /// The backend's position update over dt; appends events.
-  void drift(State& s, double dt);
-  /// Symplectic Euler after its forces f: the kick v += h M^-1 f, then the drift over h, which
-  /// must end the step (nothing changes s.v after it before step()'s check). The same bits
-  /// as kick() then drift(), with one pass over the particles fewer on each side of the drift
-  /// (the kick keeps the velocities entering it; the check reads those leaving it from s).
-  void kick_drift(State& s, const Eigen::Matrix2Xd& f, double h);
+  /// The backend's position update of s over dt, no checks: appends its contacts to
+  /// events() and returns them (valid until events() changes).
+  std::span<const pinsim_event> drift(State& s, double dt);
   /// Force Jacobians at s, 2N x 2N over dofs (2*particle + component): dfdx = sum df/dx,
   /// dfdv = sum df/dv. Forces without a Jacobian get central finite differences of their
   /// add_force (a one-time warning names the plugin); df/dv is differenced only for forces
   /// flagged dissipative or without an energy; differenced columns of pinned particles are
-  /// left zero (their dofs never move).
+  /// left zero (their dofs never move). Integrators get the entries one force at a time
+  /// (StepContext::jacobians).
   void assemble_jacobians(const State& s, Eigen::SparseMatrix<double>& dfdx,
                           Eigen::SparseMatrix<double>& dfdv);
-  /// The entries assemble_jacobians sums, as the forces emit them (same order every call
-  /// for the same forces): df/dx into tx, df/dv into tv (both cleared first; their capacity
-  /// is kept, so a caller that reuses them allocates nothing). Counts as one evaluation.
-  void jacobian_triplets(const State& s, std::vector<Eigen::Triplet<double>>& tx,
-                         std::vector<Eigen::Triplet<double>>& tv);
-  /// The same entries kept as the forces hand them over (single entries and 2x2 blocks, in
-  /// order; see JacobianEntries), for a caller that scatters them itself (implicit Euler):
-  /// cheaper than triplets, 1 position per block instead of 4. Counts as one evaluation.
-  void jacobian_entries(const State& s, JacobianEntries& ex, JacobianEntries& ev);
-  /// The same entries handed straight to the caller's sinks, in the same order (single
-  /// entries through add, blocks through add_blocks if the sink has it, else add). Counts as
-  /// one evaluation.
-  void jacobians(const State& s, const pinsim_triplet_sink& sx, const pinsim_triplet_sink& sv);
-  /// Force k's entries alone (forces().size() of them), as jacobians() hands them over; not
-  /// counted (the caller calls count_jacobian_evaluation() once for all). May be called for
-  /// two forces at once from two threads, provided no two instances of one plugin without
-  /// PINSIM_CAP_CONCURRENT (ForceInstance::concurrent) are called at once.
-  void jacobians_of(std::size_t k, const State& s, const pinsim_triplet_sink& sx,
-                    const pinsim_triplet_sink& sv);
-  void count_jacobian_evaluation() { ++jacobian_evals_; }
-  /// The force whose Jacobian weighs most in implicit Euler's system M - h df/dv - h^2 df/dx
-  /// at s: the largest (h^2 |df/dx| + h |df/dv|) / m over the entries of free rows (the
-  /// square of h w for a spring), returned in `weight`; -1 if no force has a Jacobian entry.
-  int64_t stiffest_force(const State& s, double h, double& weight);
-  /// "forces[2] 'linear_spring'": force k by its place in the scene's forces array.
-  std::string force_label(std::size_t k) const;
-  /// Number of assemble_jacobians calls.
+  /// Number of Jacobian evaluations (assemble_jacobians calls, implicit Euler's assemblies).
   uint64_t jacobian_evaluations() const { return jacobian_evals_; }
 
   double kinetic_energy(const State& s) const;
@@ -176,6 +152,17 @@ class Simulation {
   double max_energy_drift() const { return max_drift_; }
 
  private:
+  friend class StepContext;
+  friend class Integrator;  // Integrator::step: the stages without the checks
+
+  /// Force k's entries, as StepContext::jacobians hands them over; not counted.
+  void jacobians_of(std::size_t k, const State& s, const pinsim_triplet_sink& sx,
+                    const pinsim_triplet_sink& sv);
+  /// The force whose Jacobian weighs most in M - h df/dv - h^2 df/dx at s (see
+  /// StepContext::stiffest_force), its weight in `weight`; -1 if none has a Jacobian entry.
+  int64_t stiffest_force(const State& s, double h, double& weight);
+  /// "forces[2] 'linear_spring'": force k by its place in the scene's forces array.
+  std::string force_label(std::size_t k) const;
   void check_finite_forces(const State& s, const Eigen::Matrix2Xd& f) const;
   [[noreturn]] void throw_step_finding(const StepFinding& found, double t_end) const;
   void check_energy();

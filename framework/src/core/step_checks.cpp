@@ -56,7 +56,7 @@ void StepChecks::start(const State& s, double scale0, double growth) {
 // spring has lambda + 1/lambda = (h w)^2 - 2: lambda^2 > 64 for h w > 3.18. Slower growth
 // is left to the total-energy check.
 StepFinding StepChecks::check(const State& s) {
-  if (!drifted_) {  // an integrator without a drift: no contact velocity to take out
+  if (!drifted_) {  // a check without a drift around it: no contact velocity to take out
     v_in_ = s.v;
     v_out_ = s.v;
   }
@@ -132,30 +132,6 @@ StepFinding StepChecks::check(const State& s) {
   }
   ++steps_;
   return {};
-}
-
-void StepChecks::kick_before_drift(State& s, const Eigen::Matrix2Xd& f, double h) {
-  v_in_.resize(2, s.v.cols());
-  // per particle: the kick of integrators.hpp's kick(), v += (h w) f, then the copy; through
-  // plain pointers (with the matrices' members the compiler reloads their data pointers
-  // after every store: this pass took longer than the kick and a copy apart)
-  double* v = s.v.data();
-  double* vin = v_in_.data();
-  const double* fd = f.data();
-  const double* w = s.inv_mass.data();
-  for_chunks(
-      static_cast<std::size_t>(s.v.cols()), kParticleChunk,
-      [=](std::size_t, std::size_t b, std::size_t e) {
-        for (std::size_t i = b; i < e; ++i) {
-          const double a = h * w[i];
-          const double vx = v[2 * i] + a * fd[2 * i], vy = v[2 * i + 1] + a * fd[2 * i + 1];
-          v[2 * i] = vx;
-          v[2 * i + 1] = vy;
-          vin[2 * i] = vx;
-          vin[2 * i + 1] = vy;
-        }
-      },
-      Schedule::Even);
 }
 
 void StepChecks::copy_chunks(const Eigen::Matrix2Xd& from, Eigen::Matrix2Xd& to) {

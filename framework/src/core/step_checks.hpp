@@ -41,9 +41,9 @@ class StepChecks {
     copy(s.v, v_out_);
     drifted_ = true;
   }
-  /// Symplectic Euler's kick v += h M^-1 f and before_drift in one pass over the particles:
-  /// the kicked velocity is the one entering the drift.
-  void kick_before_drift(State& s, const Eigen::Matrix2Xd& f, double h);
+  /// Where the velocities entering the drift go when the kick before it fills them in its
+  /// own pass (kick()'s copy), in place of before_drift's copy.
+  Eigen::Matrix2Xd& entering_drift() { return v_in_; }
   /// after_drift for a drift that ends the step (nothing changes s.v before check()): the
   /// velocities leaving it are s.v itself, which check() reads instead of a copy.
   void after_last_drift() {
