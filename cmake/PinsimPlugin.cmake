@@ -5,9 +5,9 @@
 #
 # In-tree with PINSIM_STATIC_PLUGINS=ON (or the tests, tests/share) it also builds
 # pinsim_static_NAME, a static library of the same sources whose entry function is
-# pinsim_static_entry_NAME (PINSIM_STATIC_ENTRY in pinsim/plugin.hpp), for the static plugin
-# registry. In the web build (Emscripten) there are
-# no modules: pinsim_plugin_NAME itself is that static library.
+# pinsim_static_entry_NAME (PINSIM_STATIC_ENTRY in pinsim/detail/plugin_table.hpp), for the
+# static plugin registry. In the web build (Emscripten) there are no modules:
+# pinsim_plugin_NAME itself is that static library.
 function(pinsim_add_plugin name)
   set(target pinsim_plugin_${name})
   if(EMSCRIPTEN)
