@@ -10,6 +10,24 @@
  *
  * Authors normally do not write this table by hand: `pinsim/plugin.hpp` generates it
  * from an ordinary C++ class.
+ *
+ * Versions are major.minor (PINSIM_ABI_MAJOR, PINSIM_ABI_MINOR); a table states the
+ * version it was built against in abi_version (the major) and abi_minor, and its length in
+ * struct_size (sizeof(pinsim_plugin) where it was built).
+ * - A minor version only adds: entries at the end of pinsim_plugin, members at the end of
+ *   a struct the host fills and hands to the plugin (pinsim_create_args, the state views,
+ *   the sinks, pinsim_error), capability flags and conventions. Every added table entry is
+ *   optional: the host reads it only when struct_size says the table holds it
+ *   (PINSIM_TABLE_HAS) and the table's minor is at least the one that added it, and takes
+ *   it as absent (NULL or 0) otherwise. So the host loads a plugin built against any minor
+ *   of its major up to its own, unchanged and unrebuilt. It refuses a plugin built against
+ *   a newer minor than its own (such a plugin may read members of the host's structs that
+ *   this host does not fill), and a table shorter than its minor's layout.
+ * - A major version is any other change: a member moved, removed or retyped, or a struct
+ *   the plugin fills for the host made longer (pinsim_param, pinsim_event, pinsim_outline,
+ *   and pinsim_force_api and pinsim_backend_api, which sit inside the table before its
+ *   end). The host refuses every major but its own, and a table shorter than the smallest
+ *   of its major (PINSIM_ABI_MIN_TABLE_SIZE), naming the plugin file and both versions.
  */
 #ifndef PINSIM_ABI_H
 #define PINSIM_ABI_H
@@ -21,24 +39,19 @@
 extern "C" {
 #endif
 
-/** Bumped on every incompatible change of any struct in this file.
- *  2: pinsim_backend_api gained input() (PINSIM_CAP_INPUTS).
- *  3: pinsim_backend_api gained outline() (PINSIM_CAP_OUTLINES). The new member makes
- *     sizeof(pinsim_plugin) larger, so a table of version 2 is shorter than the host reads;
- *     the host refuses any version but its own, naming both ("rebuild it against this
- *     SDK"), before it reads a member past struct_size.
- *  4: pinsim_triplet_sink gained add_blocks() (many 2x2 blocks in one call). A plugin of
- *     version 3 would never call it, but a plugin of version 4 reads it from the host's
- *     sink, which a version-3 host does not have: the versions must match, so this bumps. */
-#define PINSIM_ABI_VERSION 4u
+/** Major version: changes with every incompatible change (see the top of this file). */
+#define PINSIM_ABI_MAJOR 4u
+/** Minor version: counts the compatible additions within the major. */
+#define PINSIM_ABI_MINOR 1u
+/** The value of pinsim_plugin.abi_version: the major version. */
+#define PINSIM_ABI_VERSION PINSIM_ABI_MAJOR
 
 /** Force arity of a plugin whose elements have variable length: each element is a whole
  *  body or a closed ring (all of a blob's boundary particles in order), not a fixed-size
  *  stencil. Such elements cross in `pinsim_create_args.elements` one after another, each
  *  as its length L followed by its L particle indices (length-prefixed); `n_elements`
- *  counts elements. A host older than this convention treats arity 0 as 1, and the SDK's
- *  create() then refuses with a message saying so; no struct changed, so the ABI version
- *  did not either. */
+ *  counts elements. The SDK's create() refuses, with a message saying so, a host that
+ *  passes such a plugin elements of a fixed arity. */
 #define PINSIM_ARITY_VARIABLE 0u
 
 /** Name of the one exported symbol of every plugin library. */
@@ -55,7 +68,7 @@ enum {
   PINSIM_CAP_DISSIPATIVE = 1u << 4, /**< force: has a velocity-dependent damping part */
   /** force: two instances may be called at the same time from two threads (they share no
    *  mutable state: no static or global scratch). The host then may compute two such
-   *  forces' Jacobians at once. No ABI change: a host that predates it ignores the bit. */
+   *  forces' Jacobians at once; a host that does not know the bit ignores it. */
   PINSIM_CAP_CONCURRENT = 1u << 5,
   PINSIM_CAP_DISTANCE = 1u << 8,         /**< backend: distance() is provided */
   PINSIM_CAP_PARTICLE_CONTACT = 1u << 9, /**< backend: can resolve particle-particle contacts */
@@ -221,7 +234,8 @@ typedef struct pinsim_backend_api {
                  pinsim_error* err);
 } pinsim_backend_api;
 
-/** The table a plugin exports. Check abi_version and struct_size before anything else. */
+/** The table a plugin exports. Check abi_version and struct_size before anything else
+ *  (the versions at the top of this file). */
 typedef struct pinsim_plugin {
   uint32_t abi_version; /**< PINSIM_ABI_VERSION the plugin was built with */
   uint32_t struct_size; /**< sizeof(pinsim_plugin) the plugin was built with */
@@ -238,7 +252,19 @@ typedef struct pinsim_plugin {
   void (*destroy)(void* self);
   pinsim_force_api force;     /**< used when kind == PINSIM_KIND_FORCE */
   pinsim_backend_api backend; /**< used when kind == PINSIM_KIND_BACKEND */
+  /* A 4.0 table ends here (PINSIM_ABI_MIN_TABLE_SIZE). Each entry below names the minor that
+   * added it and is absent from a table that ends before it (PINSIM_TABLE_HAS) or whose
+   * minor is older. A new minor appends its entries after the last one. */
+  uint32_t abi_minor; /**< 4.1: PINSIM_ABI_MINOR the plugin was built with (absent: 0) */
 } pinsim_plugin;
+
+/** Length of the smallest table of this major: a 4.0 table, every entry up to `backend`. */
+#define PINSIM_ABI_MIN_TABLE_SIZE offsetof(pinsim_plugin, abi_minor)
+
+/** Whether the table at `t` (a const pinsim_plugin*) reaches past `member`: read an entry a
+ *  minor version added only when this holds (and the table's minor is at least that one). */
+#define PINSIM_TABLE_HAS(t, member) \
+  ((size_t)(t)->struct_size >= offsetof(pinsim_plugin, member) + sizeof((t)->member))
 
 typedef const pinsim_plugin* (*pinsim_entry_fn)(void);
 

@@ -46,18 +46,15 @@ std::vector<fs::path> plugin_search_dirs(const std::vector<fs::path>& scene_path
 
 namespace {
 /// Checks a plugin table (from a library's entry function or the static registry); `where`
-/// names it in messages.
-const pinsim_plugin* checked_table(const pinsim_plugin* table, const std::string& where) {
-  if (table == nullptr) throw LoadError(where + ": " PINSIM_ENTRY_SYMBOL " returned no table");
-  // Only the first two fields are safe to read before these checks pass.
-  if (table->abi_version != PINSIM_ABI_VERSION)
-    throw LoadError(where + ": wrong plugin ABI version: plugin has " +
-                    std::to_string(table->abi_version) + ", this pinsim expects " +
-                    std::to_string(PINSIM_ABI_VERSION) + " (rebuild it against this SDK)");
-  if (table->struct_size != sizeof(pinsim_plugin))
-    throw LoadError(where + ": wrong plugin table size: plugin has " +
-                    std::to_string(table->struct_size) + " bytes, this pinsim expects " +
-                    std::to_string(sizeof(pinsim_plugin)) + " (rebuild it against this SDK)");
+/// names it in messages. Returns the table as the host reads it: a copy holding the entries
+/// the plugin's table has, every later one absent.
+std::shared_ptr<const pinsim_plugin> checked_table(const pinsim_plugin* raw,
+                                                   const std::string& where) {
+  if (raw == nullptr) throw LoadError(where + ": " PINSIM_ENTRY_SYMBOL " returned no table");
+  // Nothing past abi_version and struct_size is read before the versions pass.
+  if (const std::string bad = table_version_problem(*raw); !bad.empty())
+    throw LoadError(where + ": " + bad);
+  auto table = std::make_shared<const pinsim_plugin>(table_as_read(*raw));
   if (table->name == nullptr || table->create == nullptr || table->destroy == nullptr ||
       (table->kind != PINSIM_KIND_FORCE && table->kind != PINSIM_KIND_BACKEND))
     throw LoadError(where + ": malformed plugin table (name, kind, create or destroy missing)");
@@ -92,10 +89,11 @@ std::shared_ptr<const LoadedPlugin> load_plugin_file(const fs::path& file) {
                     ": missing symbol '" PINSIM_ENTRY_SYMBOL
                     "': a shared library, but not a pinsim plugin (use PINSIM_PLUGIN(Class))");
   auto entry = lib->get<const pinsim_plugin*()>(PINSIM_ENTRY_SYMBOL);
-  const pinsim_plugin* table = checked_table(entry(), file.string());
+  auto table = checked_table(entry(), file.string());
   auto p = std::make_shared<LoadedPlugin>();
   p->library = std::move(lib);
-  p->table = table;
+  p->table = table.get();
+  p->owner = std::move(table);
   p->path = fs::absolute(file);
   return p;
 }
@@ -118,7 +116,9 @@ std::shared_ptr<const LoadedPlugin> PluginLoader::load(const std::string& name) 
   // Plugins linked into the program come first (the web build has no other kind).
   if (const StaticPlugin* sp = find_static_plugin(name)) {
     auto p = std::make_shared<LoadedPlugin>();
-    p->table = checked_table(sp->entry(), "built-in plugin '" + name + "'");
+    auto table = checked_table(sp->entry(), "built-in plugin '" + name + "'");
+    p->table = table.get();
+    p->owner = std::move(table);
     if (p->name() != name)
       throw LoadError("built-in plugin '" + name + "' declares the name '" + p->name() + "'");
     p->path = static_plugin_path(name);

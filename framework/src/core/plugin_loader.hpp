@@ -23,10 +23,12 @@ class LoadError : public std::runtime_error {
 /// library stays mapped while any instance lives.
 struct LoadedPlugin {
   std::shared_ptr<boost::dll::shared_library> library;
+  /// The table as the host reads it: a whole table of this ABI, with every entry the
+  /// plugin's own table does not hold (an older minor's) absent.
   const pinsim_plugin* table = nullptr;
   std::filesystem::path path;
-  /// Keeps alive whatever owns a table that does not come from a library (the grader's
-  /// proxy for a sandboxed submission); null for a loaded library.
+  /// Keeps `table` alive: the host's copy of a loaded table, or whatever owns a table that
+  /// does not come from a library (the grader's proxy for a sandboxed submission).
   std::shared_ptr<const void> owner;
   std::string name() const { return table->name; }
   bool is_force() const { return table->kind == PINSIM_KIND_FORCE; }

@@ -1,12 +1,33 @@
 #include "core/plugin_table_check.hpp"
 
+#include <cstddef>
 #include <cstring>
+#include <iterator>
 #include <set>
 #include <string_view>
 #include <vector>
 
 namespace pinsim {
 namespace {
+
+/// Where the table of each minor of this major ends (index: the minor): a table stating
+/// minor m is at least this long. A new minor appends the end of its last entry.
+constexpr std::size_t kMinorTableEnd[] = {
+    PINSIM_ABI_MIN_TABLE_SIZE,                              // 4.0: up to `backend`
+    offsetof(pinsim_plugin, abi_minor) + sizeof(uint32_t),  // 4.1: abi_minor
+};
+static_assert(std::size(kMinorTableEnd) == PINSIM_ABI_MINOR + 1, "one table end per minor");
+
+std::string version_text(uint32_t major, uint32_t minor) {
+  return std::to_string(major) + "." + std::to_string(minor);
+}
+
+/// This pinsim's version and the range of plugins it loads, for messages.
+std::string host_versions() {
+  return "this pinsim has ABI " + version_text(PINSIM_ABI_MAJOR, PINSIM_ABI_MINOR) +
+         " and loads plugins of ABI " + version_text(PINSIM_ABI_MAJOR, 0) + " to " +
+         version_text(PINSIM_ABI_MAJOR, PINSIM_ABI_MINOR);
+}
 
 /// One capability flag and whether the function it announces is there.
 struct Pairing {
@@ -58,6 +79,56 @@ void check_params(const pinsim_plugin& t, std::vector<std::string>& out) {
 }
 
 }  // namespace
+
+TableVersion table_version(const pinsim_plugin& t) {
+  TableVersion v;
+  v.major = t.abi_version;
+  if (PINSIM_TABLE_HAS(&t, abi_minor)) v.minor = t.abi_minor;
+  return v;
+}
+
+std::string table_version_problem(const pinsim_plugin& t) {
+  // abi_version and struct_size are in every table; nothing else is read before they pass.
+  if (t.abi_version != PINSIM_ABI_MAJOR) {
+    const bool newer = t.abi_version > PINSIM_ABI_MAJOR;
+    return "wrong plugin ABI version: plugin has " + std::to_string(t.abi_version) +
+           ", this pinsim expects " + std::to_string(PINSIM_ABI_MAJOR) + " (" + host_versions() +
+           "): " +
+           (newer ? "the plugin was built for a newer pinsim; run it with that one, or rebuild "
+                    "it against this SDK"
+                  : "rebuild it against this SDK");
+  }
+  if (t.struct_size < PINSIM_ABI_MIN_TABLE_SIZE)
+    return "wrong plugin table size: plugin has ABI " + std::to_string(t.abi_version) +
+           " and a table of " + std::to_string(t.struct_size) + " bytes, shorter than the " +
+           std::to_string(PINSIM_ABI_MIN_TABLE_SIZE) +
+           " bytes of the smallest table of its major (" + version_text(PINSIM_ABI_MAJOR, 0) +
+           "); " + host_versions() + ": rebuild it against this SDK";
+  const TableVersion v = table_version(t);
+  const std::string plugin = version_text(v.major, v.minor);
+  if (v.minor > PINSIM_ABI_MINOR)
+    return "plugin built against ABI " + plugin + ", newer than this pinsim's " +
+           version_text(PINSIM_ABI_MAJOR, PINSIM_ABI_MINOR) +
+           " (it may read what this pinsim does not provide): run it with a pinsim of ABI " +
+           plugin + " or later, or rebuild it against this SDK";
+  if (v.minor == 0 && PINSIM_TABLE_HAS(&t, abi_minor))
+    return "malformed plugin table: it holds abi_minor, an entry of ABI " +
+           version_text(PINSIM_ABI_MAJOR, 1) + " and later, but states minor 0; " + host_versions();
+  if (t.struct_size < kMinorTableEnd[v.minor])
+    return "wrong plugin table size: plugin has ABI " + plugin + " and a table of " +
+           std::to_string(t.struct_size) + " bytes, shorter than the " +
+           std::to_string(kMinorTableEnd[v.minor]) + " bytes of every " + plugin + " table; " +
+           host_versions() + ": rebuild it against this SDK";
+  return "";
+}
+
+pinsim_plugin table_as_read(const pinsim_plugin& t) {
+  // Entry by entry: the 4.0 table whole, then each later entry only if the table holds it.
+  pinsim_plugin out{};
+  std::memcpy(&out, &t, PINSIM_ABI_MIN_TABLE_SIZE);
+  out.abi_minor = table_version(t).minor;
+  return out;
+}
 
 std::string plugin_table_problems(const pinsim_plugin& t) {
   std::vector<std::string> out;

@@ -4,6 +4,7 @@
 
 #include "core/plugin_instance.hpp"
 #include "core/plugin_loader.hpp"
+#include "core/plugin_table_check.hpp"
 #include "core/scene.hpp"
 #include "core/simulation.hpp"
 
@@ -49,10 +50,63 @@ TEST_CASE("loader: a shared library without the entry symbol") {
 }
 
 TEST_CASE("loader: wrong ABI version names both versions") {
+  // a bigger major: the plugin was built for a newer pinsim
   REQUIRE_THROWS_WITH(load_plugin_file(fixtures / "libfixture_wrong_abi.so"),
-                      Contains("wrong plugin ABI version") &&
+                      Contains("libfixture_wrong_abi.so") && Contains("wrong plugin ABI version") &&
                           Contains("plugin has " + std::to_string(PINSIM_ABI_VERSION + 41)) &&
-                          Contains("expects " + std::to_string(PINSIM_ABI_VERSION)));
+                          Contains("expects " + std::to_string(PINSIM_ABI_VERSION)) &&
+                          Contains("this pinsim has ABI 4.1") && Contains("newer pinsim"));
+}
+
+TEST_CASE("loader: a plugin built against the previous minor (4.0) loads and runs") {
+  static_assert(PINSIM_ABI_MAJOR == 4 && PINSIM_ABI_MINOR == 1);
+  // The C fixture's table is the 4.0 layout, which ends before abi_minor; the word after it
+  // holds 0xdeadbeef, so a loader reading past struct_size would refuse it as ABI 4.3735928559.
+  auto p = load_plugin_file(fixtures / "libpinsim_plugin_abi40_push.so");
+  CHECK(p->name() == "abi40_push");
+  CHECK(p->table->struct_size == PINSIM_ABI_MIN_TABLE_SIZE);
+  CHECK(p->table->abi_minor == 0);  // absent
+  CHECK_FALSE(PINSIM_TABLE_HAS(p->table, abi_minor));
+  CHECK(table_version(*p->table).major == 4);
+  CHECK(table_version(*p->table).minor == 0);
+
+  // It runs: a constant force F = (2, -3) on a particle of mass m = 2, symplectic Euler
+  // with step h: v_n = v0 + n h F/m, x_n = x0 + n h v0 + h^2 (F/m) n (n + 1) / 2.
+  const std::string text = R"({"plugin_path": [")" + fixtures.string() + R"("],
+    "time": {"dt": 0.01, "duration": 1.0}, "integrator": "symplectic_euler",
+    "particles": [{"x": [1, 1], "v": [0.5, 0], "mass": 2}],
+    "forces": [{"type": "abi40_push"}]})";
+  const Scene scene = parse_scene(text, "abi40.json", ".");
+  PluginLoader loader(plugin_search_dirs(scene.plugin_path));
+  Simulation sim(scene, loader);
+  const int n = 50;
+  for (int k = 0; k < n; ++k) sim.step();
+  const double h = 0.01, ax = 2.0 / 2.0, ay = -3.0 / 2.0;
+  const double c = h * h * n * (n + 1) / 2.0;
+  CHECK(sim.state().v(0, 0) == Approx(0.5 + n * h * ax).epsilon(1e-12));
+  CHECK(sim.state().v(1, 0) == Approx(n * h * ay).epsilon(1e-12));
+  CHECK(sim.state().x(0, 0) == Approx(1.0 + n * h * 0.5 + c * ax).epsilon(1e-12));
+  CHECK(sim.state().x(1, 0) == Approx(1.0 + c * ay).epsilon(1e-12));
+  // its energy() is called too: E = -F.x
+  CHECK(sim.potential_energy(sim.state()) ==
+        Approx(-(2.0 * sim.state().x(0, 0) - 3.0 * sim.state().x(1, 0))).epsilon(1e-12));
+}
+
+TEST_CASE("loader: a table shorter than the smallest of its major is refused") {
+  REQUIRE_THROWS_WITH(
+      load_plugin_file(fixtures / "libfixture_abi_short.so"),
+      Contains("libfixture_abi_short.so") && Contains("wrong plugin table size") &&
+          Contains("plugin has ABI 4 and a table of " +
+                   std::to_string(PINSIM_ABI_MIN_TABLE_SIZE - sizeof(void*)) + " bytes") &&
+          Contains(std::to_string(PINSIM_ABI_MIN_TABLE_SIZE) + " bytes") &&
+          Contains("this pinsim has ABI 4.1") && Contains("rebuild it against this SDK"));
+}
+
+TEST_CASE("loader: a plugin built against a newer minor is refused") {
+  REQUIRE_THROWS_WITH(load_plugin_file(fixtures / "libfixture_abi_newer_minor.so"),
+                      Contains("libfixture_abi_newer_minor.so") &&
+                          Contains("plugin built against ABI 4.2, newer than this pinsim's 4.1") &&
+                          Contains("run it with a pinsim of ABI 4.2 or later"));
 }
 
 TEST_CASE("loader: a plugin built against ABI 1 (no backend input()) is refused") {

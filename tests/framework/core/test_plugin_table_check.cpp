@@ -3,6 +3,7 @@
 // sets a flag in info() by hand, exports).
 #include <catch2/catch.hpp>
 #include <cmath>
+#include <cstring>
 
 #include "core/plugin_table_check.hpp"
 
@@ -24,6 +25,7 @@ pinsim_plugin force_table() {
   pinsim_plugin t{};
   t.abi_version = PINSIM_ABI_VERSION;
   t.struct_size = sizeof(pinsim_plugin);
+  t.abi_minor = PINSIM_ABI_MINOR;
   t.kind = PINSIM_KIND_FORCE;
   t.arity = 2;
   t.name = "spring";
@@ -33,7 +35,68 @@ pinsim_plugin force_table() {
   return t;
 }
 
+/// A table of `size` bytes copied from `t`, in a buffer whose bytes past it are 0xab: what a
+/// reader past struct_size would see (abi_minor there reads 0xabababab).
+struct ShortTable {
+  alignas(pinsim_plugin) unsigned char bytes[sizeof(pinsim_plugin)];
+  ShortTable(const pinsim_plugin& t, std::size_t size) {
+    std::memset(bytes, 0xab, sizeof bytes);
+    std::memcpy(bytes, &t, size);
+    table().struct_size = static_cast<uint32_t>(size);
+  }
+  pinsim_plugin& table() { return *reinterpret_cast<pinsim_plugin*>(bytes); }
+};
+
 }  // namespace
+
+TEST_CASE("table version: a table of this SDK states 4.1 and is read whole") {
+  const pinsim_plugin t = force_table();
+  CHECK(pinsim::table_version(t).major == PINSIM_ABI_MAJOR);
+  CHECK(pinsim::table_version(t).minor == PINSIM_ABI_MINOR);
+  CHECK(pinsim::table_version_problem(t).empty());
+  const pinsim_plugin r = pinsim::table_as_read(t);
+  CHECK(std::memcmp(&r, &t, sizeof r) == 0);
+}
+
+TEST_CASE("table version: a 4.0 table has no abi_minor, and nothing past it is read") {
+  ShortTable s(force_table(), PINSIM_ABI_MIN_TABLE_SIZE);
+  const pinsim_plugin& t = s.table();
+  CHECK_FALSE(PINSIM_TABLE_HAS(&t, abi_minor));
+  CHECK(pinsim::table_version(t).minor == 0);  // not 0xabababab
+  CHECK(pinsim::table_version_problem(t).empty());
+  const pinsim_plugin r = pinsim::table_as_read(t);
+  CHECK(r.abi_minor == 0);
+  CHECK(r.struct_size == PINSIM_ABI_MIN_TABLE_SIZE);
+  CHECK(std::memcmp(&r, &t, PINSIM_ABI_MIN_TABLE_SIZE) == 0);
+  CHECK(pinsim::plugin_table_problems(r).empty());
+  // a table that ends inside abi_minor does not hold it either
+  ShortTable half(force_table(), PINSIM_ABI_MIN_TABLE_SIZE + 2);
+  CHECK(pinsim::table_version(half.table()).minor == 0);
+  CHECK(pinsim::table_as_read(half.table()).abi_minor == 0);
+}
+
+TEST_CASE("table version: another major, a short table, a newer or a missing minor") {
+  pinsim_plugin t = force_table();
+  t.abi_version = PINSIM_ABI_MAJOR + 1;
+  CHECK_THAT(pinsim::table_version_problem(t),
+             Contains("wrong plugin ABI version: plugin has 5, this pinsim expects 4") &&
+                 Contains("this pinsim has ABI 4.1 and loads plugins of ABI 4.0 to 4.1") &&
+                 Contains("built for a newer pinsim"));
+  t.abi_version = PINSIM_ABI_MAJOR - 1;
+  CHECK_THAT(pinsim::table_version_problem(t), Contains("plugin has 3, this pinsim expects 4") &&
+                                                   Contains("rebuild it against this SDK"));
+  ShortTable s(force_table(), PINSIM_ABI_MIN_TABLE_SIZE - 8);
+  CHECK_THAT(pinsim::table_version_problem(s.table()),
+             Contains("wrong plugin table size: plugin has ABI 4 and a table of " +
+                      std::to_string(PINSIM_ABI_MIN_TABLE_SIZE - 8) + " bytes"));
+  t = force_table();
+  t.abi_minor = PINSIM_ABI_MINOR + 1;
+  CHECK_THAT(pinsim::table_version_problem(t),
+             Contains("plugin built against ABI 4.2, newer than this pinsim's 4.1"));
+  t.abi_minor = 0;  // holds abi_minor, but says 4.0
+  CHECK_THAT(pinsim::table_version_problem(t),
+             Contains("malformed plugin table: it holds abi_minor") && Contains("states minor 0"));
+}
 
 TEST_CASE("table check: consistent force and backend tables pass") {
   pinsim_plugin t = force_table();

@@ -160,8 +160,9 @@ const pinsim_plugin* make_table() {
       s.params.push_back(c);
     }
     pinsim_plugin& t = s.table;
-    t.abi_version = PINSIM_ABI_VERSION;
+    t.abi_version = PINSIM_ABI_MAJOR;
     t.struct_size = sizeof(pinsim_plugin);
+    t.abi_minor = PINSIM_ABI_MINOR;
     t.arity = s.info.arity;
     t.name = s.info.name.c_str();
     t.version = s.info.version.c_str();
