@@ -209,8 +209,48 @@ typedef struct pinsim_force_api {
                        const pinsim_triplet_sink* dfdv, pinsim_error* err);
 } pinsim_force_api;
 
+/* The backend contract. A backend owns the position update (the drift): the host's
+ * integrator changes the velocities (forces, kicks, impact corrections), the backend moves
+ * the particles along them and resolves every contact on the way.
+ *
+ * advance(self, s, dt, events, err) moves the state over [s->t, s->t + dt]:
+ * - Calls: once per step, the steps in time order, on the simulation's state, with the
+ *   velocities the integrator drifts with (symplectic Euler: after its kick
+ *   v += dt M^-1 f); input() calls come between steps. s->t is the step's start time; the
+ *   host advances the time.
+ * - May: move every particle with inv_mass > 0 along its velocity, and change such a
+ *   particle's velocity by contact impulses, each reported as one event. A particle with
+ *   no contact in the step ends at x + dt v with v unchanged (the grader compares free
+ *   flight with its closed form).
+ * - May not: change a velocity without reporting the impulse (no forces, gravity or
+ *   damping: those are force plugins); move or change a pinned particle (inv_mass 0); change
+ *   n, inv_mass or radius; keep a pointer into s or events after it returns; call the host
+ *   other than through events->emit during the call.
+ * - Events (pinsim_event), all members finite: t is the time of the impact, in
+ *   [s->t, s->t + dt] (an integrator's impact correction moves the velocity by
+ *   (t - s->t) times the normal acceleration: an error in t is an error in v); normal is a
+ *   unit vector from the obstacle to the particle; vn_before is the relative normal
+ *   velocity (v - u).normal just before the impulse, u the velocity of the obstacle's
+ *   surface there, and vn_after the same just after, so vn_after - vn_before is the
+ *   impulse's change of the normal velocity. Impulses only while approaching
+ *   (vn_before < 0). The events of one call come in an order fixed by the state (the sdf
+ *   backend: by particle, each particle's in time order); the host keeps that order.
+ * - Deterministic: the same create() arguments, input() calls and advance() arguments
+ *   give the same bits in x, v and the events, on every run and for every thread count
+ *   (`pinsim run --threads N`). No clocks, no random numbers but from a seed parameter, no
+ *   dependence on addresses or on which thread finishes first; sums in a fixed order.
+ *   Threads inside advance() are the backend's own affair under that rule; the host never
+ *   calls one instance from two threads at once. Compile with -ffp-contract=off, as the
+ *   host is (pinsim_add_plugin does).
+ * - Errors: a nonzero return with a message stops the run at that step, exit 1, naming the
+ *   backend. Refuse before moving anything where possible (the sdf backend checks every
+ *   velocity first), so that the state reported is the one the step started from.
+ * distance() and outline() only read; input() changes the obstacles' motion from time t on,
+ * never the particles. The grader checks advance() against this contract on a submitted
+ * backend: docs/grading.md, backend checks, gives the checks and their tolerances. */
 typedef struct pinsim_backend_api {
-  /** Move x along v over [t, t+dt], resolving every contact on the way. */
+  /** Move x along v over [t, t+dt], resolving every contact on the way (the contract
+   *  above). */
   int (*advance)(void* self, pinsim_state_mut* s, double dt, const pinsim_event_sink* events,
                  pinsim_error* err);
   /** Signed distance from p to the obstacles at time t; NULL unless PINSIM_CAP_DISTANCE.

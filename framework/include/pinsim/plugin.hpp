@@ -12,6 +12,10 @@
 //   static pinsim::PluginInfo info();
 //   explicit MyBackend(const pinsim::CreateContext& ctx);   // ctx.scene holds obstacles, inputs
 //   void advance(pinsim::MutableState& s, double dt, pinsim::EventSink& events);
+//     (once per step: move each particle with inv_mass > 0 over [s.t, s.t + dt] along v,
+//     change v only by contact impulses and emit one event per impulse, touch nothing else,
+//     the same bits for the same inputs on any thread count: the contract in pinsim/abi.h
+//     above pinsim_backend_api)
 // and optionally
 //   double distance(const pinsim::Vec2& p, double t, int64_t* obstacle) const; // -> CAP_DISTANCE
 //   void input(const std::string& name, bool pressed, double t);               // -> CAP_INPUTS
