@@ -3,7 +3,9 @@
 // A window (SDL2) showing the table at 60 frames per second; the physics steps at the scene's
 // dt (a frame advances the game by 1/60 s of simulated time). Keys: Left/Z/LShift left
 // flipper, Right/M/RShift right flipper, Space/Down plunger, Enter new game, Esc quit.
+#if PINSIM_WITH_SDL2
 #include <SDL.h>
+#endif
 #include <cairo.h>
 #include <spdlog/spdlog.h>
 
@@ -32,6 +34,7 @@ using nlohmann::json;
 
 constexpr double kFps = 60.0;
 
+#if PINSIM_WITH_SDL2
 // Owning SDL handles (the destroy functions of SDL2), and SDL_Init / SDL_Quit as a scope.
 using SdlWindow = std::unique_ptr<SDL_Window, CDeleter<SDL_Window, SDL_DestroyWindow>>;
 using SdlRenderer = std::unique_ptr<SDL_Renderer, CDeleter<SDL_Renderer, SDL_DestroyRenderer>>;
@@ -45,6 +48,7 @@ struct SdlVideo {
   SdlVideo(const SdlVideo&) = delete;
   SdlVideo& operator=(const SdlVideo&) = delete;
 };
+#endif
 
 struct PlayArgs {
   std::string scene;
@@ -94,6 +98,7 @@ std::vector<Scripted> read_script(const std::string& file, const std::vector<std
   return out;
 }
 
+#if PINSIM_WITH_SDL2
 /// The input a key drives, or "".
 std::string key_input(SDL_Keycode k, const std::vector<std::string>& names) {
   auto find = [&](const char* part) -> std::string {
@@ -118,6 +123,7 @@ std::string key_input(SDL_Keycode k, const std::vector<std::string>& names) {
       return "";
   }
 }
+#endif
 
 /// Draws one frame of the game into `cr` (the static field is pre-rendered).
 class Painter {
@@ -230,6 +236,11 @@ int rerun_recording(const PlayArgs& a) {
 
 int play_command(const PlayArgs& a) {
   if (!a.rerun.empty()) return rerun_recording(a);
+#if !PINSIM_WITH_SDL2
+  throw InputError(
+      "pinsim play: this pinsim was built without a window (-DPINSIM_WITH_SDL2=OFF, as the "
+      "Gradescope autograder builds it); --rerun still works");
+#else
   const std::string scene_file = a.scene;
   Scene scene = load_scene_or_default(scene_file, {});
   PluginLoader loader(plugin_search_dirs(scene.plugin_path));
@@ -321,6 +332,7 @@ int play_command(const PlayArgs& a) {
     spdlog::info("inputs recorded to {}", a.record);
   }
   return 0;
+#endif
 }
 
 }  // namespace

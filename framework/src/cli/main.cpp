@@ -48,6 +48,7 @@ int main(int argc, char** argv) {
   pinsim::cli::add_share_command(app);
   pinsim::cli::add_play_command(app);
   pinsim::cli::add_grade_command(app);
+  pinsim::cli::add_gradescope_pack_command(app);
 
   try {
     app.parse(argc, argv);
