@@ -75,7 +75,8 @@ json read_json_file(const std::string& flag, const std::string& file, const std:
   return parse_json_text(read_json_text(in, flag + " " + file), file);
 }
 
-std::vector<Scripted> read_script(const std::string& file, const std::vector<std::string>& names) {
+[[maybe_unused]] std::vector<Scripted> read_script(const std::string& file,
+                                                   const std::vector<std::string>& names) {
   const json j =
       read_json_file("--script", file, "[{\"t\": s, \"input\": name, \"action\": press|release}]");
   const Loc root{file, ""};
