@@ -311,8 +311,6 @@ int pack_command(const PackArgs& a) {
   } catch (const OutputError& e) {
     throw InputError(std::string("--out ") + e.what());
   }
-  std::size_t source_bytes = 0;
-  for (const auto& e : entries) source_bytes += e.data.size();
   spdlog::info("{}: {} files, {} KiB, for the rubric {} ({}); it builds pinsim and the plugins {}",
                out.string(), entries.size(), (bytes.size() + 1023) / 1024,
                rubric_zip.generic_string(), rubric.name, names);
