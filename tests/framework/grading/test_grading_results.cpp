@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "grade_cli.hpp"
 #include "test_support.hpp"
 
 using Catch::Matchers::Contains;
@@ -24,21 +25,8 @@ const fs::path subs = PINSIM_GRADING_SUBMISSIONS;
 const fs::path src = PINSIM_GRADING_SOURCE;
 const fs::path plugins = PINSIM_BUILD_PLUGIN_DIR;
 
-struct Graded {
-  fs::path file;  ///< results.json
-  json results;
-  int code = -1;
-};
-
-Graded grade(const fs::path& rubric, const fs::path& submission, const std::string& tag) {
-  const fs::path out = pinsim::test::temp_dir("results-" + tag);
-  const auto r =
-      pinsim::test::pinsim_cli("-q grade --rubric " + rubric.string() + " --submission " +
-                               submission.string() + " --out " + out.string() + " 2>&1");
-  INFO(r.output.substr(0, 4000));
-  REQUIRE(fs::exists(out / "results.json"));
-  return {out / "results.json", json::parse(pinsim::test::read_file(out / "results.json")), r.code};
-}
+using pinsim::test::grade;
+using pinsim::test::Graded;
 
 fs::path library_folder(const std::string& tag, const std::vector<fs::path>& libs) {
   const fs::path d = pinsim::test::temp_dir("results-sub-" + tag);

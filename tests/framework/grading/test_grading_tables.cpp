@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <nlohmann/json.hpp>
 
+#include "grade_cli.hpp"
 #include "test_support.hpp"
 
 using Catch::Matchers::Contains;
@@ -20,21 +21,8 @@ namespace {
 const fs::path subs = PINSIM_GRADING_SUBMISSIONS;
 const fs::path src = PINSIM_GRADING_SOURCE;
 
-struct Graded {
-  json results;
-  int code = -1;
-  std::string printed;
-};
-
-Graded grade(const fs::path& rubric, const fs::path& submission, const std::string& tag) {
-  const fs::path out = pinsim::test::temp_dir("tables-" + tag);
-  const auto r =
-      pinsim::test::pinsim_cli("-q grade --rubric " + rubric.string() + " --submission " +
-                               submission.string() + " --out " + out.string() + " 2>&1");
-  INFO(r.output.substr(0, 4000));
-  REQUIRE(fs::exists(out / "results.json"));
-  return {json::parse(pinsim::test::read_file(out / "results.json")), r.code, r.output};
-}
+using pinsim::test::grade;
+using pinsim::test::Graded;
 
 }  // namespace
 
