@@ -173,6 +173,37 @@ TEST_CASE("cli: bad input gives one error line and a non-zero exit") {
   }
 }
 
+TEST_CASE("cli: share --source names the folder or the web SDK it cannot use") {
+  // Refused before Emscripten is started, so this needs no web build: a stand-in web SDK
+  // (only its package file) and a stand-in engine.
+  const auto dir = test::temp_dir("cli-share-source");
+  test::write_file(dir / "sdk" / "cmake" / "pinsimConfig.cmake", "# stand-in\n");
+  test::write_file(dir / "not_a_plugin" / "notes.txt", "x");
+  test::write_file(dir / "plugin" / "CMakeLists.txt", "# stand-in\n");
+  const std::string env = "PINSIM_WEB_SDK=" + (dir / "sdk").string() + " ";
+  const std::string share = " " PINSIM_BIN " -q share " + configs + "/pinball.json --out " +
+                            (dir / "page.html").string() + " --source ";
+  struct Case {
+    std::string command;
+    int code;
+    std::string expected;
+  };
+  const Case cases[] = {
+      {env + share + (dir / "missing").string(), 2, "missing: no such folder"},
+      {env + share + (dir / "not_a_plugin").string(), 2,
+       "not_a_plugin: no CMakeLists.txt (a plugin folder"},
+      {"PINSIM_WEB_SDK=" + (dir / "not_a_plugin").string() + share + (dir / "plugin").string(), 2,
+       "not_a_plugin has no cmake/pinsimConfig.cmake"},
+  };
+  for (const auto& c : cases) {
+    CAPTURE(c.command);
+    const auto r = test::shell(c.command + " 2>&1");
+    CHECK(r.code == c.code);
+    CHECK_THAT(r.output, Contains("[error]") && Contains(c.expected));
+  }
+  CHECK_FALSE(std::filesystem::exists(dir / "page.html"));
+}
+
 TEST_CASE("cli: a flag the parser refuses is exit 2, naming the flag and what it expects") {
   // Values CLI11 checks itself (a range, a number) are bad input like an InputError.
   auto r = pinsim_cli("render " + configs + "/projectile.json --width 10");
