@@ -1,7 +1,8 @@
 // `pinsim share`'s page in a headless browser (tests/web harness): the engine runs, keys
 // play the game, the page's state hash agrees with a native rerun of its recording, a native
 // recording rerun in the page reaches the native hash, the table is drawn, no page error.
-// Usage: node test_share_page.js BROWSER --pinsim BIN --scene S
+// Usage: node test_share_page.js BROWSER --pinsim BIN --scene S [--page HTML]
+//   --page: a page already made (`pinsim share --source`); otherwise `pinsim share S` makes it.
 "use strict";
 const fs = require("fs");
 const path = require("path");
@@ -13,7 +14,7 @@ function arg(name, def) {
   return i >= 0 ? process.argv[i + 1] : def;
 }
 const browserName = process.argv[2] || "chromium";
-const pinsim = arg("pinsim"), scene = arg("scene");
+const pinsim = arg("pinsim"), scene = arg("scene"), givenPage = arg("page");
 
 async function main() {
   if (!web.available(browserName)) {
@@ -21,14 +22,16 @@ async function main() {
     return web.SKIP;
   }
   const tmp = web.tempDir("share");
-  const pageFile = path.join(tmp, "game.html");
-  const share = spawnSync(pinsim, ["-q", "share", scene, "--out", pageFile], { encoding: "utf8" });
-  if (share.status !== 0) {
-    if (/is not built/.test(share.stderr)) {
-      console.log("SKIPPED: " + share.stderr.trim());
-      return web.SKIP;
+  const pageFile = givenPage || path.join(tmp, "game.html");
+  if (!givenPage) {
+    const share = spawnSync(pinsim, ["-q", "share", scene, "--out", pageFile], { encoding: "utf8" });
+    if (share.status !== 0) {
+      if (/is not built/.test(share.stderr)) {
+        console.log("SKIPPED: " + share.stderr.trim());
+        return web.SKIP;
+      }
+      throw new Error("pinsim share failed: " + share.stderr);
     }
-    throw new Error("pinsim share failed: " + share.stderr);
   }
   const size = fs.statSync(pageFile).size;
   console.log(`page ${pageFile}: ${(size / 1024).toFixed(0)} kB`);
