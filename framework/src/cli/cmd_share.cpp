@@ -13,6 +13,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "core/base64.hpp"
 #include "core/input_error.hpp"
 #include "core/output_file.hpp"
 #include "pictures/cairo_handles.hpp"
