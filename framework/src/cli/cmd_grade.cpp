@@ -15,10 +15,12 @@
 #include "commands.hpp"
 #include "core/data_files.hpp"
 #include "core/input_error.hpp"
+#include "core/plugin_loader.hpp"
 #include "core/stop_signals.hpp"
 #include "grading/grader.hpp"
 #include "grading/results.hpp"
 #include "grading/sandbox.hpp"
+#include "pictures/comparison.hpp"
 #include "tools/child_process.hpp"
 #include "tools/sweep.hpp"
 
@@ -80,6 +82,12 @@ int grade_one(const GradeArgs& a) {
   opt.sdk_prefix = !a.sdk_prefix.empty()                ? fs::path(a.sdk_prefix)
                    : fs::exists(prefix / "sdk-package") ? prefix / "sdk-package"
                                                         : prefix;
+  // The picture of a failed simulation or path test: drawn by pictures (cairo), which
+  // grading does not link; the table is the scene's backend, the reference's.
+  opt.draw_comparison = [](const PathComparison& c) {
+    PluginLoader loader(plugin_search_dirs(c.scene.plugin_path));
+    return comparison_png(c, loader);
+  };
   install_stop_handlers();
   const GradeReport r = grade_submission(rubric, opt);
   if (!r.write_error.empty()) {

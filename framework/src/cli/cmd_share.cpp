@@ -16,6 +16,7 @@
 
 #include "cli_common.hpp"
 #include "commands.hpp"
+#include "core/base64.hpp"
 #include "core/data_files.hpp"
 #include "core/input_error.hpp"
 #include "core/output_file.hpp"

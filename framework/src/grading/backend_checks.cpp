@@ -11,6 +11,7 @@
 #include "core/input_error.hpp"
 #include "core/scene.hpp"
 #include "core/simulation.hpp"
+#include "grading/path_record.hpp"
 
 namespace fs = std::filesystem;
 
@@ -201,10 +202,13 @@ std::optional<std::string> gate(const State& s, Eigen::Index i, uint64_t n, cons
          "). No other part of this test is graded until the balls move";
 }
 
-std::optional<std::string> penetration(const Pair& p, const State& s, uint64_t n, double depth) {
+/// The first particle deeper than `depth` inside an obstacle (its index in *who), if any.
+std::optional<std::string> penetration(const Pair& p, const State& s, uint64_t n, double depth,
+                                       Eigen::Index* who = nullptr) {
   for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
     int64_t k = -1;
     const double c = p.clearance(s.x.col(i), s.t, s.radius[i], &k);
+    if (who != nullptr) *who = i;
     if (!(c >= -depth))
       return "at step " + std::to_string(n) + " (t = " + num(s.t, 6) + ") particle " +
              std::to_string(i) + " is " + num(-c, 3) + " inside obstacle " +
@@ -485,14 +489,23 @@ Verdict energy(Pair& p, const RubricTest& t) {
                     num(theirs, 6)};
 }
 
+/// A failed verdict with the picture of both paths up to now, failing on particle i.
+Verdict failed_path(const Pair& p, const PathRecorder& rec, Eigen::Index i, std::string why) {
+  Verdict v{false, std::move(why)};
+  v.figure = rec.failed(static_cast<std::size_t>(i), &p.ref->backend());
+  return v;
+}
+
 // ---- backend_path: the reference's path, step by step; the first step where it leaves.
 Verdict path(Pair& p, const RubricTest& t) {
   const double tol = t.spec.value("tolerance", 1e-3);
   double worst = 0.0;
   uint64_t worst_step = 0;
+  PathRecorder rec(p.scene);
   for (uint64_t n = 1; n <= p.steps(); ++n) {
     if (auto e = p.step(n)) return {false, *e};
     const State &s = p.sub->state(), &r = p.ref->state();
+    rec.add(n, s, r);
     for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
       const double d = (s.x.col(i) - r.x.col(i)).norm();
       if (!(d <= worst)) {
@@ -500,11 +513,12 @@ Verdict path(Pair& p, const RubricTest& t) {
         worst_step = n;
       }
       if (!(d <= tol))
-        return {false, "your path leaves the reference's at step " + std::to_string(n) + " of " +
-                           std::to_string(p.steps()) + " (t = " + num(s.t, 6) + "): particle " +
-                           std::to_string(i) + " is at " + vec(s.x.col(i)) +
-                           ", the reference's at " + vec(r.x.col(i)) + ", " + num(d, 3) +
-                           " apart (accepted " + num(tol, 3) + ")"};
+        return failed_path(p, rec, i,
+                           "your path leaves the reference's at step " + std::to_string(n) +
+                               " of " + std::to_string(p.steps()) + " (t = " + num(s.t, 6) +
+                               "): particle " + std::to_string(i) + " is at " + vec(s.x.col(i)) +
+                               ", the reference's at " + vec(r.x.col(i)) + ", " + num(d, 3) +
+                               " apart (accepted " + num(tol, 3) + ")");
     }
   }
   return {true, "the path follows the reference's for all " + std::to_string(p.steps()) +
@@ -525,24 +539,30 @@ Verdict no_tunnelling(Pair& p, const RubricTest& t) {
   const double tol = t.spec.value("tolerance", kDepth);
   const double ptol = t.spec.value("path_tolerance", 1e-2);
   double deepest = 0.0, worst = 0.0;
+  PathRecorder rec(p.scene);
   for (uint64_t n = 1; n <= p.steps(); ++n) {
     if (auto e = p.step(n)) return {false, *e};
     const State &s = p.sub->state(), &r = p.ref->state();
+    rec.add(n, s, r);
     for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
       if (n <= free[static_cast<std::size_t>(i)])
-        if (auto e = gate(s, i, n, fl[static_cast<std::size_t>(i)])) return {false, *e};
+        if (auto e = gate(s, i, n, fl[static_cast<std::size_t>(i)]))
+          return failed_path(p, rec, i, *e);
       deepest = std::max(deepest, -p.clearance(s.x.col(i), s.t, s.radius[i]));
     }
-    if (auto e = penetration(p, s, n, tol)) return {false, *e};
+    Eigen::Index who = 0;
+    if (auto e = penetration(p, s, n, tol, &who)) return failed_path(p, rec, who, *e);
     for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
       const double d = (s.x.col(i) - r.x.col(i)).norm();
       worst = std::max(worst, std::isfinite(d) ? d : HUGE_VAL);
       if (!(d <= ptol))
-        return {false, "at step " + std::to_string(n) + " (t = " + num(s.t, 6) + ") particle " +
-                           std::to_string(i) + " (speed " + num(V2(s0.v.col(i)).norm(), 3) +
-                           ") is at " + vec(s.x.col(i)) + ", the reference's at " +
-                           vec(r.x.col(i)) + ": " + num(d, 3) + " apart (accepted " + num(ptol, 3) +
-                           "); a ball that tunnels ends the step on the far side of the wall"};
+        return failed_path(p, rec, i,
+                           "at step " + std::to_string(n) + " (t = " + num(s.t, 6) + ") particle " +
+                               std::to_string(i) + " (speed " + num(V2(s0.v.col(i)).norm(), 3) +
+                               ") is at " + vec(s.x.col(i)) + ", the reference's at " +
+                               vec(r.x.col(i)) + ": " + num(d, 3) + " apart (accepted " +
+                               num(ptol, 3) +
+                               "); a ball that tunnels ends the step on the far side of the wall");
     }
   }
   return {true, std::to_string(s0.x.cols()) + " balls, " + std::to_string(p.steps()) +

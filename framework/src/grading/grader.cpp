@@ -8,8 +8,10 @@
 #include <map>
 #include <memory>
 
+#include "core/base64.hpp"
 #include "core/format.hpp"
 #include "core/stop_signals.hpp"
+#include "grading/path_record.hpp"
 #include "grading/private_paths.hpp"
 #include "grading/remote_plugin.hpp"
 #include "grading/results.hpp"
@@ -213,10 +215,45 @@ class Grading {
     return static_cast<std::size_t>(rubric_.output_limit_kb * 1024.0);
   }
 
+  /// The picture of a failed simulation or path test, as results.hpp's "picture" (null when
+  /// there is none); `note` says why one was left out.
+  nlohmann::json picture(const RubricTest& t, const grading::Verdict& v, std::string& note) {
+    if (v.passed || !v.figure || !opt_.draw_comparison) return nullptr;
+    ComparisonPicture pic;
+    try {
+      pic = opt_.draw_comparison(*v.figure);
+    } catch (const std::exception& e) {
+      spdlog::warn("no picture for test '{}': {}", t.name, e.what());
+      return nullptr;
+    }
+    std::string png = base64(pic.png);
+    if (png.size() > grading::kPictureMaxBytes) {
+      spdlog::warn("no picture for test '{}': {} bytes of base64, over the limit of {}", t.name,
+                   png.size(), grading::kPictureMaxBytes);
+      return nullptr;
+    }
+    if (picture_bytes_ + png.size() > grading::kPicturesMaxBytes) {
+      note = "\n(Its picture is left out: the pictures of these results have reached their " +
+             std::to_string(grading::kPicturesMaxBytes / 1024) + " KiB.)";
+      return nullptr;
+    }
+    picture_bytes_ += png.size();
+    return {{"png_base64", std::move(png)},
+            {"width", pic.width},
+            {"height", pic.height},
+            {"caption",
+             grading::sanitize_text(pic.legend + " " + grading::comparison_caption(*v.figure))}};
+  }
+
   void add(std::size_t i, grading::Verdict v, double seconds) {
     const RubricTest& t = rubric_.tests[i];
     std::string out = v.output;
     if (!v.passed && v.ran && !t.hint.empty()) out += "\nHint: " + t.hint;
+    std::string note;
+    nlohmann::json pic = picture(t, v, note);
+    out += note;
+    // The picture goes between the verdict and what the code printed.
+    const std::string head = grading::sanitize_text(out);
     const std::string printed = !printed_.empty() ? printed_ : printed_open_;
     if (!printed.empty())
       out += "\n\n--- what your code printed during this test (" + std::to_string(printed_bytes_) +
@@ -225,14 +262,20 @@ class Grading {
     printed_open_.clear();
     printed_bytes_ = 0;
     const double score = v.passed ? t.points : 0.0;
-    tests_.push_back({{"name", grading::sanitize_text(t.name)},
-                      {"number", std::to_string(i + 1)},
-                      {"score", score},
-                      {"max_score", t.points},
-                      {"status", v.passed ? "passed" : "failed"},
-                      {"output", grading::sanitize_text(out)},
-                      {"visibility", t.visibility},
-                      {"execution_time", seconds}});
+    nlohmann::json entry = {{"name", grading::sanitize_text(t.name)},
+                            {"number", std::to_string(i + 1)},
+                            {"score", score},
+                            {"max_score", t.points},
+                            {"status", v.passed ? "passed" : "failed"},
+                            {"output", grading::sanitize_text(out)},
+                            {"visibility", t.visibility},
+                            {"execution_time", seconds}};
+    if (!pic.is_null()) {
+      const std::string& text = entry["output"].get_ref<const std::string&>();
+      pic["at"] = text.compare(0, head.size(), head) == 0 ? head.size() : text.size();
+      entry["picture"] = std::move(pic);
+    }
+    tests_.push_back(std::move(entry));
     spdlog::debug("{} {}: {}", v.passed ? "pass" : "FAIL", t.name, v.output);
   }
 
@@ -268,6 +311,7 @@ class Grading {
   std::map<std::string, PluginWorker> workers_;
   std::string printed_, printed_open_;
   std::size_t printed_bytes_ = 0;
+  std::size_t picture_bytes_ = 0;  ///< the base64 text of the pictures so far
   int stopped_by_ = 0;
   std::size_t problem_at_ = kNone;    ///< the test that shows prep.problem in full
   std::size_t build_log_at_ = kNone;  ///< the test that shows the build's log

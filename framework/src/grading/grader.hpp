@@ -5,9 +5,11 @@
 #pragma once
 
 #include <filesystem>
+#include <functional>
 #include <nlohmann/json.hpp>
 #include <string>
 
+#include "core/path_comparison.hpp"
 #include "grading/rubric.hpp"
 
 namespace pinsim {
@@ -17,6 +19,9 @@ struct GradeOptions {
   std::filesystem::path out;         ///< where results.json etc. go
   std::filesystem::path pinsim_exe;  ///< this program, run as the sandboxed worker
   std::filesystem::path sdk_prefix;  ///< where find_package(pinsim) looks (source submissions)
+  /// Draws the picture of a failed simulation or path test (the program passes pictures'
+  /// comparison_png: grading does not link cairo). Empty: those tests show text only.
+  std::function<ComparisonPicture(const PathComparison&)> draw_comparison;
 };
 
 /// The outcome of grading one submission.

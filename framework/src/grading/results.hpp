@@ -4,6 +4,7 @@
 // file or the whole new one.
 #pragma once
 
+#include <cstddef>
 #include <filesystem>
 #include <nlohmann/json.hpp>
 #include <string>
@@ -21,6 +22,19 @@ std::string junit_xml(const nlohmann::json& results, const std::string& suite);
 /// top-level output, which must not repeat what every test already shows.
 std::string summary_text(const nlohmann::json& results, const std::string& rubric_name,
                          bool with_outputs = true);
+
+/// The pictures of failed simulation and path tests: each PNG at most kPictureMaxBytes of
+/// base64 text (a larger one is left out), all of one results object at most
+/// kPicturesMaxBytes together (a picture beyond is left out, and its test's text says so).
+inline constexpr std::size_t kPictureMaxBytes = 48 * 1024;
+inline constexpr std::size_t kPicturesMaxBytes = 256 * 1024;
+
+/// results.json as Gradescope reads it. A test of `results` may carry "picture"
+/// ({"png_base64", "width", "height", "caption", "at"}: a PNG and its caption, to be shown
+/// after the first `at` bytes of its text "output"); such a test becomes "output_format":
+/// "html", its text in <pre> blocks with the picture and caption between them, and the key
+/// "picture" is dropped. junit.xml and summary.txt show the text alone.
+nlohmann::json gradescope_results(const nlohmann::json& results);
 
 /// Writes results.json, junit.xml and summary.txt into `dir`, atomically each.
 void write_results(const std::filesystem::path& dir, const nlohmann::json& results,

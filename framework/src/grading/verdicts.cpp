@@ -10,6 +10,7 @@
 #include "core/scene.hpp"
 #include "core/simulation.hpp"
 #include "grading/backend_checks.hpp"
+#include "grading/path_record.hpp"
 #include "tools/plugin_check.hpp"
 
 namespace fs = std::filesystem;
@@ -149,24 +150,51 @@ Verdict simulation_test(const std::shared_ptr<const LoadedPlugin>& sub, const Ru
   const double tol = t.spec.value("tolerance", 1e-6);
   double worst = 0.0;
   uint64_t worst_step = 0;
+  // The picture of a failure: both runs to the end (or to the step before the run failed),
+  // marked at the first step where a particle is further than the tolerance from the
+  // reference's.
+  PathRecorder rec(base);
+  std::optional<PathComparison> parted;
+  auto picture = [&]() -> std::optional<PathComparison> {
+    if (!parted) return std::nullopt;
+    PathComparison whole = rec.failed(parted->particle, nullptr);
+    parted->mine = std::move(whole.mine);
+    parted->reference = std::move(whole.reference);
+    parted->drawn_to = whole.drawn_to;
+    return parted;
+  };
   for (uint64_t n = 0; n < base.steps(); ++n) {
     ref.step();
     try {
       sim.step();
     } catch (const NumericError& e) {
-      return {false, "your simulation failed at step " + std::to_string(e.step) + ", particle " +
-                         std::to_string(e.particle) + ": " + e.what()};
+      Verdict v{false, "your simulation failed at step " + std::to_string(e.step) + ", particle " +
+                           std::to_string(e.particle) + ": " + e.what()};
+      v.figure = picture();
+      return v;
     }
-    const double d = (sim.state().x - ref.state().x).colwise().norm().maxCoeff();
+    const Eigen::RowVectorXd dist = (sim.state().x - ref.state().x).colwise().norm();
+    const double d = dist.maxCoeff();
     if (!(d <= worst)) {
       worst = std::isfinite(d) ? d : HUGE_VAL;
       worst_step = n + 1;
     }
+    rec.add(n + 1, sim.state(), ref.state());
+    if (!parted) {
+      for (Eigen::Index i = 0; i < dist.size() && !parted; ++i)
+        if (!(dist[i] <= tol)) {
+          parted = rec.failed(static_cast<std::size_t>(i), &ref.backend());
+          parted->what = "your path first leaves the reference's by more than " + num(tol, 3);
+        }
+    }
   }
-  return {worst <= tol, "simulation of " + t.spec.at("scene").get<std::string>() + " (" +
-                            std::to_string(base.steps()) + " steps): largest position difference " +
-                            num(worst, 3) + " from the reference, at step " +
-                            std::to_string(worst_step) + " (accepted " + num(tol, 3) + ")"};
+  Verdict v{worst <= tol, "simulation of " + t.spec.at("scene").get<std::string>() + " (" +
+                              std::to_string(base.steps()) +
+                              " steps): largest position difference " + num(worst, 3) +
+                              " from the reference, at step " + std::to_string(worst_step) +
+                              " (accepted " + num(tol, 3) + ")"};
+  if (!v.passed) v.figure = picture();
+  return v;
 }
 
 /// Not scored: the same scene on a second reference (Box2D), and how far the submission's

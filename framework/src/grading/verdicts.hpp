@@ -6,8 +6,10 @@
 
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 
+#include "core/path_comparison.hpp"
 #include "core/plugin_loader.hpp"
 #include "grading/rubric.hpp"
 
@@ -19,6 +21,9 @@ struct Verdict {
   /// False when the test could not run at all (no build, no plugin, no time left): its
   /// output is the cause, and the rubric's physics hint is not added.
   bool ran = true;
+  /// For a failed simulation or path test: both paths, where they part and where a ball
+  /// went into an obstacle, for the picture beside the output.
+  std::optional<PathComparison> figure = std::nullopt;
 };
 
 /// Runs test `t` on the submission's plugin `sub`; the rubric's folder resolves scenes.

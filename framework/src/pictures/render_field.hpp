@@ -67,7 +67,4 @@ nlohmann::json moving_obstacles(const nlohmann::json& backend_scene);
 /// Writes a cairo image surface to PNG bytes in memory.
 std::string png_bytes(cairo_surface_t* image);
 
-/// Base64 (for data: URIs).
-std::string base64(const std::string& bytes);
-
 }  // namespace pinsim

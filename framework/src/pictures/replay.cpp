@@ -6,6 +6,7 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "core/base64.hpp"
 #include "core/output_file.hpp"
 #include "core/simulation.hpp"
 #include "pictures/render.hpp"
