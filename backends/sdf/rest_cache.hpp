@@ -2,6 +2,7 @@
 // input comes again and nothing that moves can have changed the result (see README).
 #pragma once
 
+#include <algorithm>
 #include <cstddef>
 #include <cstdint>
 #include <pinsim/plugin.hpp>
@@ -20,6 +21,15 @@ struct RestProbe {
   double speed = 0.0;       ///< largest speed at a query
   bool static_only = true;  ///< every query's nearest obstacle static, no moving one near
   bool at_rest = false;     ///< ended at rest after one resting contact, no event
+
+  /// Takes in one query of the march: at x the nearest distance d, the particle's speed, and
+  /// whether a moving obstacle was near or the nearest one moves.
+  void observe(const Vec2& x, double d, double v, bool moving) {
+    reach = std::max(reach, (x - x0).squaredNorm());
+    d_max = std::max(d_max, d);
+    speed = std::max(speed, v);
+    if (moving) static_only = false;
+  }
 };
 
 /// A particle step that ended at rest: the same input gives the same output as long as

@@ -82,6 +82,27 @@ void SdfBackend::input(const std::string& name, bool pressed, double t) {
   reset_timeline_caches();
 }
 
+namespace {
+/// The event of an impulse on particle i from obstacle k at time t: contact point pc,
+/// normal n, normal relative speed before and after.
+[[gnu::always_inline]] inline pinsim_event impact_event(std::size_t i, int64_t k, double t,
+                                                        const Vec2& pc, const Vec2& n,
+                                                        double vn_before, double vn_after) {
+  pinsim_event e{};
+  e.t = t;
+  e.particle = static_cast<int64_t>(i);
+  e.obstacle = k;
+  e.other = -1;
+  e.point[0] = pc.x();
+  e.point[1] = pc.y();
+  e.normal[0] = n.x();
+  e.normal[1] = n.y();
+  e.vn_before = vn_before;
+  e.vn_after = vn_after;
+  return e;
+}
+}  // namespace
+
 // Sphere tracing (conservative advancement). Along the path x(s) = x + v s the clearance
 // d(s) = min_k sdf_k(x(s), t + s) - r changes at most at L = |v| + U, U the largest speed of
 // a nearby moving obstacle (an exact SDF is 1-Lipschitz in space; a rigid motion moves the
@@ -92,8 +113,11 @@ void SdfBackend::input(const std::string& name, bool pressed, double t) {
 //   v' = v - (1 + e)((v - u).n) n  - min(mu j, |v_t|) t̂  + kick n,
 // otherwise the particle moves on by at most max(d, depth_min), which cannot take it deeper
 // than depth_min inside the surface.
-bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
-                       SdfStats& st, EventSink& ev, RestProbe* probe) {
+[[gnu::always_inline]] inline SdfBackend::MarchEnd SdfBackend::march_path(std::size_t i, Vec2& x,
+                                                                          Vec2& v, double r,
+                                                                          double t, double dur,
+                                                                          Budget& b, EventSink& ev,
+                                                                          RestProbe* probe) {
   double remaining = dur;
   const auto& moving = field_.moving();
   bool first = true;
@@ -102,19 +126,17 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
     if (b.iterations >= max_iterations_ || b.collisions >= max_collisions_) {
       // Fallback: for the rest of the step the particle rides rigidly with the nearest
       // obstacle (stays where it is if that one is static); its velocity is kept.
-      ++st.cap_hits;
       const Nearest nn = field_.nearest(x, t);
       if (nn.k >= 0) x = field_.carry(static_cast<std::size_t>(nn.k), x, t, t + remaining);
-      return false;
+      return MarchEnd::capped;
     }
     ++b.iterations;
-    ++st.queries;
     // after a query in the contact band the next is likely there too: take the gradient
     // with the query rather than evaluating the nearest obstacle again
     const Nearest nn = in_band ? field_.nearest_with_gradient(x, t) : field_.nearest(x, t);
     if (nn.k < 0) {
       x += v * remaining;
-      return true;
+      return MarchEnd::arrived;
     }
     const double d = nn.d - r;
     const double speed = v.norm();
@@ -124,23 +146,18 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
       if (uk > 0.0 && field_.lower_bound(k, x) - r - depth_min_ <= (speed + uk) * remaining)
         u_max = std::max(u_max, uk);
     }
-    if (probe) {
-      probe->reach = std::max(probe->reach, (x - probe->x0).squaredNorm());
-      probe->d_max = std::max(probe->d_max, nn.d);
-      probe->speed = std::max(probe->speed, speed);
-      if (u_max > 0.0 ||
-          field_.obstacle(static_cast<std::size_t>(nn.k)).motion != MotionType::kStatic)
-        probe->static_only = false;
-    }
+    if (probe)
+      probe->observe(x, nn.d, speed,
+                     u_max > 0.0 || field_.obstacle(static_cast<std::size_t>(nn.k)).motion !=
+                                        MotionType::kStatic);
     const double lip = speed + u_max;
-    if (!(lip > 0.0)) return true;  // nothing moves relative to anything
+    if (!(lip > 0.0)) return MarchEnd::arrived;  // nothing moves relative to anything
     if (d > depth_min_ + tol_) {
       in_band = false;
       const double step = (d - depth_min_) / lip;
       if (step >= remaining) {
-        if (first) ++st.skipped;
         x += v * remaining;
-        return true;
+        return first ? MarchEnd::skipped : MarchEnd::arrived;
       }
       x += v * step;
       t += step;
@@ -187,25 +204,11 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
       if (!resting && m.kick > 0.0) dv += m.kick * n;
       v += dv;
       ++b.collisions;
-      ++st.contacts;
-      if (!resting) {
-        pinsim_event e{};
-        e.t = t;
-        e.particle = static_cast<int64_t>(i);
-        e.obstacle = nn.k;
-        e.other = -1;
-        e.point[0] = pc.x();
-        e.point[1] = pc.y();
-        e.normal[0] = n.x();
-        e.normal[1] = n.y();
-        e.vn_before = vn;
-        e.vn_after = (v - u).dot(n);
-        ev.emit(e);
-      }
+      if (!resting) ev.emit(impact_event(i, nn.k, t, pc, n, vn, (v - u).dot(n)));
       if (dc < depth_min_) x += (depth_min_ - dc) * n;  // back to the contact offset
       if (u_max == 0.0 && v.squaredNorm() == 0.0) {     // at rest, nothing nearby moves
         if (probe) probe->at_rest = resting && b.collisions == 1;
-        return true;
+        return MarchEnd::arrived;
       }
       continue;
     }
@@ -213,13 +216,26 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
     if (step < remaining) step = std::max(step, slide_step(k, x, v, r, remaining, lip));
     if (step >= remaining) {
       x += v * remaining;
-      return true;
+      return MarchEnd::arrived;
     }
     x += v * step;
     t += step;
     remaining -= step;
   }
-  return true;
+  return MarchEnd::arrived;
+}
+
+// The march's statistics: its queries and impulses are counted in the budget on the way and
+// added here, with a cap hit or a skip, when the path ends.
+bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
+                       SdfStats& st, EventSink& ev, RestProbe* probe) {
+  const Budget before = b;
+  const MarchEnd end = march_path(i, x, v, r, t, dur, b, ev, probe);
+  st.queries += static_cast<uint64_t>(b.iterations - before.iterations);
+  st.contacts += static_cast<uint64_t>(b.collisions - before.collisions);
+  st.cap_hits += end == MarchEnd::capped;
+  st.skipped += end == MarchEnd::skipped;
+  return end != MarchEnd::capped;
 }
 
 // Sliding on a static obstacle k (in the band, not approaching): the steps above move

@@ -46,6 +46,12 @@ class SdfBackend : public FieldBackend {
   /// Counts into st and emits into ev (the chunk's own when particles run on threads).
   bool march(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
              SdfStats& st, EventSink& ev, RestProbe* probe = nullptr);
+  /// How a march's path ended: at the end of `dur` (or at rest), in one step (its first
+  /// query's clearance exceeded the travel), or at a cap (the fallback took the rest).
+  enum class MarchEnd { arrived, skipped, capped };
+  /// The path of march(): the sphere tracing and the impulses, counted in b.
+  MarchEnd march_path(std::size_t i, Vec2& x, Vec2& v, double r, double t, double dur, Budget& b,
+                      EventSink& ev, RestProbe* probe);
   /// Step along a sliding contact with static obstacle k (see sdf_backend.cpp), 0 if none.
   double slide_step(std::size_t k, const Vec2& x, const Vec2& v, double r, double remaining,
                     double lip) const;

@@ -235,6 +235,125 @@ int rerun_recording(const PlayArgs& a) {
   return same ? 0 : 1;
 }
 
+#if PINSIM_WITH_SDL2
+/// The window's SDL objects, every one owned, so a throw anywhere releases them all (the
+/// members go in reverse order: the texture first, SDL_Quit last).
+class Window {
+ public:
+  /// A window of width x height pixels with a renderer (vsync, else software) and the
+  /// streaming texture each frame is copied into.
+  Window(const std::string& title, int width, int height)
+      : width_(width),
+        height_(height),
+        win_(SDL_CreateWindow(title.c_str(), SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED, width,
+                              height, 0)) {
+    if (!win_) throw std::runtime_error(std::string("SDL_CreateWindow: ") + SDL_GetError());
+    ren_.reset(SDL_CreateRenderer(win_.get(), -1, SDL_RENDERER_PRESENTVSYNC));
+    if (!ren_) ren_.reset(SDL_CreateRenderer(win_.get(), -1, SDL_RENDERER_SOFTWARE));
+    if (!ren_) throw std::runtime_error(std::string("SDL_CreateRenderer: ") + SDL_GetError());
+    tex_.reset(SDL_CreateTexture(ren_.get(), SDL_PIXELFORMAT_ARGB8888, SDL_TEXTUREACCESS_STREAMING,
+                                 width, height));
+    if (!tex_) throw std::runtime_error(std::string("SDL_CreateTexture: ") + SDL_GetError());
+  }
+
+  /// Shows `frame` (an image of the window's size); with a `screenshot` path, also saves
+  /// what the window shows, read back from the renderer, as PNG.
+  void show(cairo_surface_t* frame, const std::string& screenshot) {
+    SDL_UpdateTexture(tex_.get(), nullptr, cairo_image_surface_get_data(frame),
+                      cairo_image_surface_get_stride(frame));
+    SDL_RenderClear(ren_.get());
+    SDL_RenderCopy(ren_.get(), tex_.get(), nullptr, nullptr);
+    if (!screenshot.empty()) {
+      const CairoSurface shot = image_surface(width_, height_);
+      cairo_surface_flush(shot.get());
+      if (SDL_RenderReadPixels(ren_.get(), nullptr, SDL_PIXELFORMAT_ARGB8888,
+                               cairo_image_surface_get_data(shot.get()),
+                               cairo_image_surface_get_stride(shot.get())) != 0)
+        spdlog::warn("screenshot: {}", SDL_GetError());
+      cairo_surface_mark_dirty(shot.get());
+      cairo_surface_write_to_png(shot.get(), screenshot.c_str());
+    }
+    SDL_RenderPresent(ren_.get());
+  }
+
+ private:
+  int width_, height_;
+  SdlVideo video_;
+  SdlWindow win_;
+  SdlRenderer ren_;
+  SdlTexture tex_;
+};
+
+/// The game being played: the keys drive its inputs, Enter starts a new game after game
+/// over, and a script's inputs apply at their times.
+class Session {
+ public:
+  Session(const Scene& scene, PluginLoader& loader)
+      : scene_(scene), loader_(loader), game_(std::make_unique<PinballGame>(scene, loader)) {}
+
+  void set_script(std::vector<Scripted> script) { script_ = std::move(script); }
+  const PinballGame& game() const { return *game_; }
+
+  /// Takes the window's pending events; true on Esc or when the window is closed.
+  bool handle_events() {
+    bool quit = false;
+    SDL_Event ev;
+    while (SDL_PollEvent(&ev)) {
+      if (ev.type == SDL_QUIT) quit = true;
+      if ((ev.type == SDL_KEYDOWN || ev.type == SDL_KEYUP) && ev.key.repeat == 0) {
+        if (ev.key.keysym.sym == SDLK_ESCAPE) quit = true;
+        if (ev.key.keysym.sym == SDLK_RETURN && ev.type == SDL_KEYDOWN && game_->game_over())
+          game_ = std::make_unique<PinballGame>(scene_, loader_);
+        const std::string in = key_input(ev.key.keysym.sym, game_->input_names());
+        if (!in.empty()) game_->set_input(in, ev.type == SDL_KEYDOWN);
+      }
+    }
+    return quit;
+  }
+
+  /// Physics: as many steps of dt as reach the frame's time t_frame, s, each after the
+  /// script's inputs that are due.
+  void advance_to(double t_frame) {
+    while (!game_->game_over() && game_->state().t + 0.5 * game_->dt() < t_frame) {
+      while (next_ < script_.size() && script_[next_].t <= game_->state().t + 1e-12) {
+        game_->set_input(script_[next_].input, script_[next_].press);
+        ++next_;
+      }
+      game_->step();
+    }
+  }
+
+ private:
+  const Scene& scene_;
+  PluginLoader& loader_;
+  std::unique_ptr<PinballGame> game_;
+  std::vector<Scripted> script_;
+  std::size_t next_ = 0;  ///< the first script entry not applied yet
+};
+
+/// The static table, pre-rendered once as the background of every frame.
+CairoSurface static_table(const Scene& scene, PluginLoader& loader, const PixelMap& map) {
+  CairoSurface bg = image_surface(map.width, map.height);
+  const CairoContext cr = cairo_context(bg.get());
+  draw_static_table(cr.get(), scene, loader, map);
+  return bg;
+}
+
+/// Logs how the game ended and, with `record`, writes its input recording there.
+void report_game(const PinballGame& game, const std::string& scene_file,
+                 const std::string& record) {
+  const json rec = game.recording(scene_file);
+  spdlog::info("score {} after {:.2f} s ({} steps), balls left {}{}; state hash {}", game.score(),
+               game.state().t, game.steps(), game.balls_left(),
+               game.game_over() ? ", game over" : "", rec["state_hash"].get<std::string>());
+  if (!record.empty()) {
+    // Whole or not at all: an earlier recording at that path stays as it was if this fails.
+    write_file_atomically(record, rec.dump(2) + "\n");
+    spdlog::info("inputs recorded to {}", record);
+  }
+}
+#endif
+
 int play_command(const PlayArgs& a) {
   if (!a.rerun.empty()) return rerun_recording(a);
 #if !PINSIM_WITH_SDL2
@@ -242,96 +361,35 @@ int play_command(const PlayArgs& a) {
       "pinsim play: this pinsim was built without a window (-DPINSIM_WITH_SDL2=OFF, as the "
       "Gradescope autograder builds it); --rerun still works");
 #else
-  const std::string scene_file = a.scene;
-  Scene scene = load_scene_or_default(scene_file, {});
+  // Plan: the scene, the game and its script, the static table, the window.
+  const Scene scene = load_scene_or_default(a.scene, {});
   PluginLoader loader(plugin_search_dirs(scene.plugin_path));
-  auto game = std::make_unique<PinballGame>(scene, loader);
-  std::vector<Scripted> script;
-  if (!a.script.empty()) script = read_script(a.script, game->input_names());
-
-  // The static table, pre-rendered once.
-  const PixelMap map(scene_view(scene, game->backend()), a.width);
-  const CairoSurface bg = image_surface(map.width, map.height);
-  {
-    const CairoContext cr = cairo_context(bg.get());
-    draw_static_table(cr.get(), scene, loader, map);
-  }
+  Session play(scene, loader);
+  if (!a.script.empty()) play.set_script(read_script(a.script, play.game().input_names()));
+  const PixelMap map(scene_view(scene, play.game().backend()), a.width);
+  const CairoSurface bg = static_table(scene, loader, map);
   const CairoSurface frame = image_surface(map.width, map.height);
-  Painter painter(*game, map, bg.get());
+  Painter painter(play.game(), map, bg.get());
+  Window window("pinsim play: " + scene.name, map.width, map.height);
 
-  // Every SDL object is owned, so a throw anywhere below releases them all.
-  const SdlVideo video;
-  const SdlWindow win(SDL_CreateWindow(("pinsim play: " + scene.name).c_str(),
-                                       SDL_WINDOWPOS_CENTERED, SDL_WINDOWPOS_CENTERED, map.width,
-                                       map.height, 0));
-  if (!win) throw std::runtime_error(std::string("SDL_CreateWindow: ") + SDL_GetError());
-  SdlRenderer ren(SDL_CreateRenderer(win.get(), -1, SDL_RENDERER_PRESENTVSYNC));
-  if (!ren) ren.reset(SDL_CreateRenderer(win.get(), -1, SDL_RENDERER_SOFTWARE));
-  if (!ren) throw std::runtime_error(std::string("SDL_CreateRenderer: ") + SDL_GetError());
-  const SdlTexture tex(SDL_CreateTexture(ren.get(), SDL_PIXELFORMAT_ARGB8888,
-                                         SDL_TEXTUREACCESS_STREAMING, map.width, map.height));
-  if (!tex) throw std::runtime_error(std::string("SDL_CreateTexture: ") + SDL_GetError());
-
-  std::size_t next_script = 0;
-  uint64_t frame_no = 0;
+  // Loop: 60 frames per second (vsync may already have waited), each advancing the game by
+  // 1/60 s, until Esc, the window closed or --seconds of game time.
   bool quit = false;
-  while (!quit) {
+  for (uint64_t frame_no = 1; !quit; ++frame_no) {
     const uint32_t frame_start = SDL_GetTicks();
-    SDL_Event ev;
-    while (SDL_PollEvent(&ev)) {
-      if (ev.type == SDL_QUIT) quit = true;
-      if ((ev.type == SDL_KEYDOWN || ev.type == SDL_KEYUP) && ev.key.repeat == 0) {
-        if (ev.key.keysym.sym == SDLK_ESCAPE) quit = true;
-        if (ev.key.keysym.sym == SDLK_RETURN && ev.type == SDL_KEYDOWN && game->game_over())
-          game = std::make_unique<PinballGame>(scene, loader);
-        const std::string in = key_input(ev.key.keysym.sym, game->input_names());
-        if (!in.empty()) game->set_input(in, ev.type == SDL_KEYDOWN);
-      }
-    }
-    // Physics: as many steps of dt as reach the next frame's time.
-    ++frame_no;
+    quit = play.handle_events();
     const double t_frame = static_cast<double>(frame_no) / kFps;
-    while (!game->game_over() && game->state().t + 0.5 * game->dt() < t_frame) {
-      while (next_script < script.size() && script[next_script].t <= game->state().t + 1e-12) {
-        game->set_input(script[next_script].input, script[next_script].press);
-        ++next_script;
-      }
-      game->step();
-    }
+    play.advance_to(t_frame);
     if (a.seconds > 0 && t_frame >= a.seconds - 1e-9) quit = true;
-
-    painter.paint(cairo_context(frame.get()).get(), *game);
+    painter.paint(cairo_context(frame.get()).get(), play.game());
     cairo_surface_flush(frame.get());
-    SDL_UpdateTexture(tex.get(), nullptr, cairo_image_surface_get_data(frame.get()),
-                      cairo_image_surface_get_stride(frame.get()));
-    SDL_RenderClear(ren.get());
-    SDL_RenderCopy(ren.get(), tex.get(), nullptr, nullptr);
-    if (quit && !a.screenshot.empty()) {
-      // What the window shows, read back from the renderer.
-      const CairoSurface shot = image_surface(map.width, map.height);
-      cairo_surface_flush(shot.get());
-      if (SDL_RenderReadPixels(ren.get(), nullptr, SDL_PIXELFORMAT_ARGB8888,
-                               cairo_image_surface_get_data(shot.get()),
-                               cairo_image_surface_get_stride(shot.get())) != 0)
-        spdlog::warn("screenshot: {}", SDL_GetError());
-      cairo_surface_mark_dirty(shot.get());
-      cairo_surface_write_to_png(shot.get(), a.screenshot.c_str());
-    }
-    SDL_RenderPresent(ren.get());
-    // 60 frames per second (vsync may already have waited).
+    window.show(frame.get(), quit ? a.screenshot : std::string());
     const uint32_t spent = SDL_GetTicks() - frame_start;
     if (spent < 16) SDL_Delay(16 - spent);
   }
 
-  const json rec = game->recording(scene_file);
-  spdlog::info("score {} after {:.2f} s ({} steps), balls left {}{}; state hash {}", game->score(),
-               game->state().t, game->steps(), game->balls_left(),
-               game->game_over() ? ", game over" : "", rec["state_hash"].get<std::string>());
-  if (!a.record.empty()) {
-    // Whole or not at all: an earlier recording at that path stays as it was if this fails.
-    write_file_atomically(a.record, rec.dump(2) + "\n");
-    spdlog::info("inputs recorded to {}", a.record);
-  }
+  // Report: the score and state hash, and the recording.
+  report_game(play.game(), a.scene, a.record);
   return 0;
 #endif
 }

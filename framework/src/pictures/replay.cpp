@@ -62,25 +62,33 @@ json moving_frames(const BackendInstance& moving, const State& initial, const Pi
   return {{"times", times}, {"frames", frames}};
 }
 
-}  // namespace
+/// The scene's obstacles as the page draws them: `fixed` the static ones (all of them if
+/// none moves), drawn once as the background; `moving` the moving ones, drawn per frame
+/// (null if none moves). Both null without a scene.
+struct ObstacleBackends {
+  std::unique_ptr<BackendInstance> fixed, moving;
+};
 
-PixelMap write_replay(const RunData& run, const Scene* scene, PluginLoader& loader,
-                      const ReplayOptions& opt, const fs::path& out) {
-  // The static obstacles' backend (all of them if none moves) and the moving ones'.
-  std::unique_ptr<BackendInstance> be, mb;
-  json mov = nullptr;
-  if (scene) {
-    mov = moving_obstacles(scene->backend_scene);
-    be =
-        make_backend(*scene, loader,
-                     mov.is_null() ? scene->backend_scene : static_obstacles(scene->backend_scene));
-    if (!mov.is_null()) mb = make_backend(*scene, loader, mov);
-  }
+ObstacleBackends obstacle_backends(const Scene* scene, PluginLoader& loader) {
+  ObstacleBackends b;
+  if (!scene) return b;
+  const json mov = moving_obstacles(scene->backend_scene);
+  b.fixed =
+      make_backend(*scene, loader,
+                   mov.is_null() ? scene->backend_scene : static_obstacles(scene->backend_scene));
+  if (!mov.is_null()) b.moving = make_backend(*scene, loader, mov);
+  return b;
+}
+
+/// The world rectangle shown: the scene's and its obstacles' (padded without a scene) with
+/// the run's path, unless the options give one.
+ViewBox replay_view(const RunData& run, const Scene* scene, const ObstacleBackends& b,
+                    const ReplayOptions& opt) {
   ViewBox view = inverted_view();
   if (scene) {
     const State s = scene->initial_state();
-    ViewBox obstacles = obstacles_view(*be, s);
-    if (mb) obstacles = united(obstacles, obstacles_view(*mb, s));
+    ViewBox obstacles = obstacles_view(*b.fixed, s);
+    if (b.moving) obstacles = united(obstacles, obstacles_view(*b.moving, s));
     view = scene_view(*scene, obstacles);
   }
   add_run_to_view(run, view, 0.0);
@@ -90,34 +98,43 @@ PixelMap write_replay(const RunData& run, const Scene* scene, PluginLoader& load
     check_view(*opt.view, view, opt.width);
     view = *opt.view;
   }
-  const PixelMap map(view, opt.width);
-  const double t_end = run.t_end();
+  return view;
+}
 
-  // Background: the static obstacles' field; moving ones are drawn per frame on top.
+/// The background as PNG bytes: the static obstacles' field (contour lines spaced for
+/// `view`) on the paper colour.
+std::string background_png(const ObstacleBackends& b, const PixelMap& map, const ViewBox& view) {
   cairo_surface_t* bg = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, map.width, map.height);
   cairo_t* cr = cairo_create(bg);
   cairo_set_source_rgb(cr, 0.97, 0.95, 0.90);
   cairo_paint(cr);
-  json moving = nullptr;
-  std::optional<State> s0;
-  if (scene) {
-    s0 = scene->initial_state();
-    if (be->has_distance()) {
-      const FieldGrid g = sample_field(
-          [&](double x, double y) { return be->distance(x, y, 0.0, nullptr); }, map, 1);
-      draw_field(cr, map, g, contour_spacing(view));
-      if (mb && mb->has_distance()) moving = moving_frames(*mb, *s0, map, t_end, opt.obstacle_fps);
-    }
+  if (b.fixed && b.fixed->has_distance()) {
+    const FieldGrid g = sample_field(
+        [&](double x, double y) { return b.fixed->distance(x, y, 0.0, nullptr); }, map, 1);
+    draw_field(cr, map, g, contour_spacing(view));
   }
   cairo_destroy(cr);
-  const std::string png = png_bytes(bg);
+  std::string png = png_bytes(bg);
   cairo_surface_destroy(bg);
+  return png;
+}
 
-  // Particles: pixel positions, thinned evenly if there are too many samples.
+/// The moving obstacles' frames (moving_frames) when they and the static ones have a
+/// distance; null otherwise. `s0`: the scene's initial state.
+json moving_json(const ObstacleBackends& b, const State* s0, const PixelMap& map, double t_end,
+                 double fps) {
+  if (!s0 || !b.fixed || !b.fixed->has_distance() || !b.moving || !b.moving->has_distance())
+    return nullptr;
+  return moving_frames(*b.moving, *s0, map, t_end, fps);
+}
+
+/// Each particle's path in canvas pixels, thinned evenly if there are too many samples, with
+/// its colour and radius (from the scene's initial state `s0`, at least 2.5 pixels).
+json particles_json(const RunData& run, const PixelMap& map, const State* s0,
+                    std::size_t max_samples) {
   std::size_t total = 0;
   for (const auto& p : run.particles) total += p.size();
-  const std::size_t stride =
-      std::max<std::size_t>(1, (total + opt.max_samples - 1) / opt.max_samples);
+  const std::size_t stride = std::max<std::size_t>(1, (total + max_samples - 1) / max_samples);
   json particles = json::array();
   for (std::size_t i = 0; i < run.particles.size(); ++i) {
     const auto& p = run.particles[i];
@@ -135,19 +152,20 @@ PixelMap write_replay(const RunData& run, const Scene* scene, PluginLoader& load
     particles.push_back(
         {{"t", t}, {"x", x}, {"y", y}, {"r", std::max(round2(r), 2.5)}, {"color", hex_colour(c)}});
   }
+  return particles;
+}
+
+/// The run's contacts: [t, x, y (pixels), nx, ny, obstacle id].
+json contacts_json(const RunData& run, const PixelMap& map) {
   json contacts = json::array();
   for (const auto& c : run.contacts)
     contacts.push_back(
         {c.t, round2(map.px(c.x)), round2(map.py(c.y)), round2(c.nx), round2(c.ny), c.obstacle_id});
+  return contacts;
+}
 
-  std::string title = run.label;
-  if (scene && !scene->name.empty()) title = scene->name + " — " + run.label;
-  const json data = {
-      {"title", title},         {"map", map.to_json()},
-      {"t_end", t_end},         {"background", "data:image/png;base64," + base64(png)},
-      {"particles", particles}, {"contacts", contacts},
-      {"moving", moving},       {"summary", run.summary}};
-
+/// The page: the template with `data` in its script and `title` in its title.
+std::string replay_html(const json& data, const std::string& title) {
   std::string html = kReplayTemplate;
   const std::string marker = "/*PINSIM_DATA*/null";
   const auto at = html.find(marker);
@@ -159,7 +177,37 @@ PixelMap write_replay(const RunData& run, const Scene* scene, PluginLoader& load
   html.replace(at, marker.size(), js);
   const auto tat = html.find("PINSIM_TITLE");
   if (tat != std::string::npos) html.replace(tat, 12, title);
+  return html;
+}
 
+}  // namespace
+
+PixelMap write_replay(const RunData& run, const Scene* scene, PluginLoader& loader,
+                      const ReplayOptions& opt, const fs::path& out) {
+  // Plan: the obstacles' backends, the world rectangle shown and its pixels.
+  const ObstacleBackends obstacles = obstacle_backends(scene, loader);
+  const ViewBox view = replay_view(run, scene, obstacles, opt);
+  const PixelMap map(view, opt.width);
+  const double t_end = run.t_end();
+  std::optional<State> s0;
+  if (scene) s0 = scene->initial_state();
+  const State* start = s0 ? &*s0 : nullptr;
+
+  // The pictures and the run: background, moving obstacles, particles, contacts.
+  const std::string png = background_png(obstacles, map, view);
+  const json moving = moving_json(obstacles, start, map, t_end, opt.obstacle_fps);
+  const json particles = particles_json(run, map, start, opt.max_samples);
+  const json contacts = contacts_json(run, map);
+
+  // Report: the page with its data, written whole or not at all.
+  std::string title = run.label;
+  if (scene && !scene->name.empty()) title = scene->name + " — " + run.label;
+  const json data = {
+      {"title", title},         {"map", map.to_json()},
+      {"t_end", t_end},         {"background", "data:image/png;base64," + base64(png)},
+      {"particles", particles}, {"contacts", contacts},
+      {"moving", moving},       {"summary", run.summary}};
+  const std::string html = replay_html(data, title);
   fs::create_directories(fs::absolute(out).parent_path());
   write_file_atomically(out, html);
   return map;

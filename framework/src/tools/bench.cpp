@@ -7,6 +7,7 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <limits>
 #include <map>
@@ -16,7 +17,6 @@
 #include "core/format.hpp"
 #include "core/json_read.hpp"
 #include "core/simulation.hpp"
-#include "core/stop_signals.hpp"
 #include "tools/bench_answer.hpp"
 
 namespace fs = std::filesystem;
@@ -173,6 +173,143 @@ Result run_point(const Case& c, const Point& p, int repeats, PluginLoader& loade
   return res;
 }
 
+/// Checks case `ci` of the config (its keys, exactly one of answer and reference, their
+/// keys and types) and reads it.
+Case read_case(const sweep::Config& cfg, const json& cj, std::size_t ci,
+               const sweep::CaseAt& where) {
+  const std::string& cw = where.where;
+  const Loc& at = where.at;
+  check_keys(cj, {"name", "scene", "answer", "reference", "dt", "integrators", "backends"}, at);
+  Case c;
+  c.name = read_string_or(cj, "name", "case" + std::to_string(ci), at);
+  c.where = cw;
+  if (!cj.contains("scene")) throw InputError(cw + ".scene: required");
+  c.doc = sweep::scene_doc(cfg, cj["scene"], c.base);
+  c.answer = cj.value("answer", json());
+  c.reference = cj.value("reference", json());
+  if (c.answer.is_null() == c.reference.is_null())
+    throw InputError(cw + ": give exactly one of \"answer\" (closed form) or \"reference\"");
+  if (!c.answer.is_null()) require_object(c.answer, at / "answer");
+  if (!c.reference.is_null()) require_object(c.reference, at / "reference");
+  // a misspelt optional key (damping_ratio, floor, ...) would silently change the answer
+  if (c.answer.is_object()) {
+    const std::string type = read_string_or(c.answer, "type", "", at / "answer");
+    if (type == "projectile")
+      check_keys(c.answer, {"type", "particle", "g"}, at / "answer");
+    else if (type == "harmonic")
+      check_keys(c.answer, {"type", "particle", "omega", "damping_ratio", "center"}, at / "answer");
+    else if (type == "bouncing_ball")
+      check_keys(c.answer, {"type", "particle", "floor", "g", "restitution"}, at / "answer");
+    else if (type == "ball_in_box")
+      check_keys(c.answer, {"type", "particle", "min", "max"}, at / "answer");
+  }
+  if (c.reference.is_object()) {
+    check_keys(c.reference, {"integrator", "dt", "sample_every"}, at / "reference");
+    // read later with these defaults: their types are checked here, where the path is known
+    read_string_or(c.reference, "integrator", "rk4", at / "reference");
+    read_number_or(c.reference, "dt", 1e-5, at / "reference");
+    read_number_or(c.reference, "sample_every", 1.0, at / "reference");
+  }
+  return c;
+}
+
+/// What a bench config asks for: its cases, the points crossing their axes (backends
+/// outermost, dt innermost) and the timed runs per point.
+struct Plan {
+  std::vector<Case> cases;
+  std::vector<Point> points;
+  int repeats = 0;
+};
+
+/// Reads and checks the whole config; InputError names what is wrong and where.
+Plan read_plan(const sweep::Config& cfg, const Options& o) {
+  const json& d = cfg.doc;
+  const std::string where = cfg.file.string();
+  const json& cases_j = sweep::cases(cfg);
+  check_keys(d, {"$schema", "description", "cases", "integrators", "backends", "dt", "repeats"},
+             {where, ""});
+  Plan plan;
+  plan.repeats = o.repeats >= 0 ? o.repeats
+                                : static_cast<int>(std::min<uint64_t>(
+                                      read_count_or(d, "repeats", 3, {where, ""}), 1000000));
+  for (std::size_t ci = 0; ci < cases_j.size(); ++ci) {
+    const json& cj = cases_j[ci];
+    Case c = read_case(cfg, cj, ci, sweep::case_at(cfg, ci));
+    const sweep::Axes ax = sweep::case_axes(cfg, cj, c.where);
+    for (const json& b : ax.backends)
+      for (const std::string& in : ax.integrators)
+        for (double dt : ax.dts)
+          plan.points.push_back({plan.points.size(), plan.cases.size(), b, in, dt});
+    plan.cases.push_back(std::move(c));
+  }
+  return plan;
+}
+
+/// What makes shards parts of one sweep: the config, every case's scene, the options.
+std::string inputs_of(const sweep::Config& cfg, const Plan& plan) {
+  std::vector<const json*> scenes;
+  for (const Case& c : plan.cases) scenes.push_back(&c.doc);
+  return sweep::sweep_inputs("bench", cfg, "\nrepeats=" + std::to_string(plan.repeats), scenes);
+}
+
+/// Runs the points of a plan, each to its CSV row and a log line; a reference run is made
+/// once per case and backend and kept for the case's other points.
+class PointRunner {
+ public:
+  explicit PointRunner(const Plan& plan) : plan_(plan), loader_(plugin_search_dirs()) {}
+
+  std::vector<std::string> operator()(std::size_t i) {
+    const Point& p = plan_.points[i];
+    const Case& c = plan_.cases[p.case_index];
+    const std::string bname = backend_name(p.backend, c.doc);
+    const Samples* ref = reference(p, c);
+    Result r;
+    try {
+      r = run_point(c, p, plan_.repeats, loader_, ref);
+    } catch (const PluginError& e) {
+      r.status = std::string("plugin error: ") + e.what();
+    }
+    if (r.status != "ok") failed_ = true;
+    std::replace(r.status.begin(), r.status.end(), ',', ';');
+    spdlog::info("[{}/{}] {} {} {} dt={} err_max={} time={}s {}", p.index + 1, plan_.points.size(),
+                 c.name, bname, p.integrator, p.dt, num(r.err_max), num(r.t_med), r.status);
+    return {std::to_string(p.index),
+            c.name,
+            c.answer.is_null() ? "reference" : c.answer.value("type", "?"),
+            bname,
+            p.integrator,
+            num(p.dt),
+            std::to_string(r.steps),
+            std::to_string(plan_.repeats),
+            num(r.t_med),
+            num(r.t_min),
+            num(r.err_final),
+            num(r.err_max),
+            num(r.drift),
+            std::to_string(r.force_evals),
+            std::to_string(r.jac_evals),
+            std::to_string(r.contacts),
+            r.status};
+  }
+
+  /// Some point ran into a numeric or plugin error.
+  bool failed() const { return failed_; }
+
+ private:
+  /// The reference samples point p compares with; nullptr for a case with a closed form.
+  const Samples* reference(const Point& p, const Case& c) {
+    if (c.reference.is_null()) return nullptr;
+    auto key = std::make_pair(p.case_index, p.backend.dump());
+    if (!refs_.count(key)) refs_[key] = reference_samples(c, p.backend, loader_);
+    return &refs_[key];
+  }
+
+  const Plan& plan_;
+  PluginLoader loader_;
+  std::map<std::pair<std::size_t, std::string>, Samples> refs_;
+  bool failed_ = false;
+};
+
 }  // namespace
 
 const std::vector<std::string>& columns() {
@@ -185,113 +322,18 @@ const std::vector<std::string>& columns() {
 
 int run(const Options& o) {
   const sweep::Config cfg = sweep::load_config(o.config);
-  const json& d = cfg.doc;
-  const std::string where = cfg.file.string();
-  const json& cases_j = sweep::cases(cfg);
-  check_keys(d, {"$schema", "description", "cases", "integrators", "backends", "dt", "repeats"},
-             {where, ""});
-  const int repeats = o.repeats >= 0 ? o.repeats
-                                     : static_cast<int>(std::min<uint64_t>(
-                                           read_count_or(d, "repeats", 3, {where, ""}), 1000000));
-
-  std::vector<Case> cases;
-  std::vector<Point> points;
-  for (std::size_t ci = 0; ci < cases_j.size(); ++ci) {
-    const json& cj = cases_j[ci];
-    const std::string cw = where + ": cases[" + std::to_string(ci) + "]";
-    check_keys(cj, {"name", "scene", "answer", "reference", "dt", "integrators", "backends"},
-               Loc{where, "cases"}[ci]);
-    const Loc at = Loc{where, "cases"}[ci];
-    Case c;
-    c.name = read_string_or(cj, "name", "case" + std::to_string(ci), at);
-    c.where = cw;
-    if (!cj.contains("scene")) throw InputError(cw + ".scene: required");
-    c.doc = sweep::scene_doc(cfg, cj["scene"], c.base);
-    c.answer = cj.value("answer", json());
-    c.reference = cj.value("reference", json());
-    if (c.answer.is_null() == c.reference.is_null())
-      throw InputError(cw + ": give exactly one of \"answer\" (closed form) or \"reference\"");
-    if (!c.answer.is_null()) require_object(c.answer, at / "answer");
-    if (!c.reference.is_null()) require_object(c.reference, at / "reference");
-    // a misspelt optional key (damping_ratio, floor, ...) would silently change the answer
-    if (c.answer.is_object()) {
-      const std::string type = read_string_or(c.answer, "type", "", at / "answer");
-      if (type == "projectile")
-        check_keys(c.answer, {"type", "particle", "g"}, at / "answer");
-      else if (type == "harmonic")
-        check_keys(c.answer, {"type", "particle", "omega", "damping_ratio", "center"},
-                   at / "answer");
-      else if (type == "bouncing_ball")
-        check_keys(c.answer, {"type", "particle", "floor", "g", "restitution"}, at / "answer");
-      else if (type == "ball_in_box")
-        check_keys(c.answer, {"type", "particle", "min", "max"}, at / "answer");
-    }
-    if (c.reference.is_object()) {
-      check_keys(c.reference, {"integrator", "dt", "sample_every"}, at / "reference");
-      // read later with these defaults: their types are checked here, where the path is known
-      read_string_or(c.reference, "integrator", "rk4", at / "reference");
-      read_number_or(c.reference, "dt", 1e-5, at / "reference");
-      read_number_or(c.reference, "sample_every", 1.0, at / "reference");
-    }
-    const sweep::Axes ax = sweep::case_axes(cfg, cj, cw);
-    for (const json& b : ax.backends)
-      for (const std::string& in : ax.integrators)
-        for (double dt : ax.dts) points.push_back({points.size(), cases.size(), b, in, dt});
-    cases.push_back(std::move(c));
-  }
+  const Plan plan = read_plan(cfg, o);
   if (o.check_only) return 0;
-
+  PointRunner points(plan);
   sweep::Sweep sw;
   sw.tool = "bench";
   sw.columns = columns();
-  sw.points = points.size();
-  // What makes shards parts of one sweep: the config, every case's scene, the options.
-  sw.inputs = "bench\n" + d.dump() + "\nrepeats=" + std::to_string(repeats);
-  for (const Case& c : cases) sw.inputs += "\n" + c.doc.dump();
-  PluginLoader loader(plugin_search_dirs());
-  std::map<std::pair<std::size_t, std::string>, Samples> refs;
-  int code = 0;
-  sw.run_point = [&](std::size_t i) -> std::vector<std::string> {
-    const Point& p = points[i];
-    const Case& c = cases[p.case_index];
-    const std::string bname = backend_name(p.backend, c.doc);
-    const Samples* ref = nullptr;
-    if (!c.reference.is_null()) {
-      auto key = std::make_pair(p.case_index, p.backend.dump());
-      if (!refs.count(key)) refs[key] = reference_samples(c, p.backend, loader);
-      ref = &refs[key];
-    }
-    Result r;
-    try {
-      r = run_point(c, p, repeats, loader, ref);
-    } catch (const PluginError& e) {
-      r.status = std::string("plugin error: ") + e.what();
-    }
-    if (r.status != "ok") code = 1;
-    std::replace(r.status.begin(), r.status.end(), ',', ';');
-    spdlog::info("[{}/{}] {} {} {} dt={} err_max={} time={}s {}", p.index + 1, points.size(),
-                 c.name, bname, p.integrator, p.dt, num(r.err_max), num(r.t_med), r.status);
-    return {std::to_string(p.index),
-            c.name,
-            c.answer.is_null() ? "reference" : c.answer.value("type", "?"),
-            bname,
-            p.integrator,
-            num(p.dt),
-            std::to_string(r.steps),
-            std::to_string(repeats),
-            num(r.t_med),
-            num(r.t_min),
-            num(r.err_final),
-            num(r.err_max),
-            num(r.drift),
-            std::to_string(r.force_evals),
-            std::to_string(r.jac_evals),
-            std::to_string(r.contacts),
-            r.status};
-  };
+  sw.points = plan.points.size();
+  sw.inputs = inputs_of(cfg, plan);
+  sw.run_point = std::ref(points);
   sw.report = report;
-  if (const int sig = sweep::drive(sw, o.shard, o.out, where, o.resume)) return stop_exit_code(sig);
-  return code;
+  const int sig = sweep::drive(sw, o.shard, o.out, cfg.file.string(), o.resume);
+  return sweep::exit_code(sig, points.failed() ? 1 : 0);
 }
 
 void report(const sweep::Table& t, const fs::path& out) {

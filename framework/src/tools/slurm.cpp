@@ -295,6 +295,321 @@ std::string resume_command() {
 
 enum class Phase { pending, running, done, failed };
 
+/// Refuses what cannot be submitted (an option's form, Slurm's commands missing, an output
+/// path that cannot go into #SBATCH lines), then creates OUT/slurm.
+void prepare(const ArrayJob& job, const Request& r) {
+  validate(r);
+  for (const char* tool : {"sbatch", "squeue", "scontrol"})
+    if (!on_path(tool))
+      throw InputError(std::string(tool) +
+                       " not found on PATH: --slurm needs Slurm's client commands (Debian: "
+                       "slurm-client; on a cluster, a login node or `module load slurm`)");
+  const std::string out_s = job.out.string();
+  if (out_s.find_first_of(" \t\n'\"") != std::string::npos)
+    throw InputError("--out " + out_s +
+                     ": with --slurm the output folder's path must not hold "
+                     "spaces or quotes (it goes into #SBATCH lines)");
+  fs::create_directories(slurm_dir(job));
+}
+
+/// What this run submits and follows.
+struct Plan {
+  Submission sub;              ///< the submission as job.json will say it
+  std::vector<int> to_submit;  ///< shards to (re)submit now, ascending
+  std::vector<bool> follow;    ///< shards this run waits for: (re)submitted now, or still queued
+};
+
+/// --resume: the previous submission's shards without a complete result that are no longer
+/// queued are resubmitted; those still queued are followed.
+Plan plan_resume(const ArrayJob& job, const Request& r, const std::optional<Submission>& prev,
+                 const std::function<bool(int)>& queued) {
+  const std::string out_s = job.out.string();
+  if (!prev)
+    throw InputError("--resume: nothing to resume in " + out_s +
+                     " (no slurm/job.json); "
+                     "submit without --resume first");
+  if (r.shards && r.shards != prev->shards)
+    throw InputError("--resume --shards " + std::to_string(r.shards) + ": " + out_s +
+                     " was submitted with " + std::to_string(prev->shards) +
+                     " shards; drop --shards, or start over without --resume");
+  if (prev->command != job.command)
+    throw InputError("--resume: " + out_s +
+                     " was submitted for a different command (config, options or "
+                     "program); start over without --resume");
+  Plan p;
+  p.sub = *prev;
+  p.follow.assign(p.sub.shards, true);
+  for (int i = 0; i < p.sub.shards; ++i) {
+    if (queued(i)) continue;  // still queued or running: follow it
+    if (result_complete(job, i, p.sub.shards))
+      p.follow[i] = false;
+    else
+      p.to_submit.push_back(i);
+  }
+  if (p.to_submit.empty())
+    spdlog::info("--resume: no shard to resubmit ({} complete or still queued)", p.sub.shards);
+  else
+    spdlog::info("--resume: resubmitting shard{} {} of {}", p.to_submit.size() > 1 ? "s" : "",
+                 ranges(p.to_submit), p.sub.shards);
+  return p;
+}
+
+/// A fresh start: every shard is submitted. Refused while shards of the previous submission
+/// are still queued; no result, status or log of an earlier submission may be mistaken for
+/// one of this one, so they are removed.
+Plan plan_fresh(const ArrayJob& job, const Request& r, const std::optional<Submission>& prev,
+                const std::function<bool(int)>& queued) {
+  const std::string out_s = job.out.string();
+  if (prev)
+    for (int i = 0; i < prev->shards; ++i)
+      if (queued(i))
+        throw InputError(out_s + " has shards of job " + prev->job_of[i] +
+                         " still queued or running; follow them with --resume, or "
+                         "`scancel " +
+                         prev->job_of[i] + "` first");
+  Plan p;
+  p.sub.shards = r.shards ? r.shards : kDefaultShards;
+  p.sub.command = job.command;
+  p.sub.job_of.assign(p.sub.shards, "");
+  std::error_code ec;
+  const int old_n = prev ? prev->shards : 0;
+  for (int n : {old_n, p.sub.shards})
+    for (int i = 0; i < n; ++i) {
+      fs::remove(job.result(i, n), ec);
+      fs::remove(sweep::manifest_path(job.result(i, n)), ec);
+    }
+  for (int i = 0; i < std::max(old_n, p.sub.shards); ++i) {
+    fs::remove(status_file(job, i), ec);
+    fs::remove(log_file(job, i), ec);
+  }
+  for (int i = 0; i < p.sub.shards; ++i) p.to_submit.push_back(i);
+  p.follow.assign(p.sub.shards, true);
+  return p;
+}
+
+/// Which shards to submit and follow, from the previous submission (job.json) and the queue.
+Plan plan_submission(const ArrayJob& job, const Request& r, const fs::path& script) {
+  const auto prev = read_submission(job);
+  const auto queue = queue_states(script);
+  auto queued = [&queue](int i) { return queue && queue->count(i) > 0; };
+  if (prev && !queue)
+    throw InputError(
+        "squeue failed, so it is unknown whether shards of the previous "
+        "submission in " +
+        job.out.string() + " are still queued; try again");
+  return r.resume ? plan_resume(job, r, prev, queued) : plan_fresh(job, r, prev, queued);
+}
+
+/// Writes the job script and submits one array of the shards to (re)run; records the job in
+/// job.json and returns its id ("" if there was nothing to submit).
+std::string submit(const ArrayJob& job, const Request& r, const fs::path& script, Plan& p) {
+  sweep::write_atomically(script, job_script(job, r, p.sub.shards));
+  fs::permissions(script, fs::perms::owner_exec, fs::perm_options::add);
+  if (p.to_submit.empty()) return "";
+  for (int i : p.to_submit) {
+    std::error_code ec;
+    fs::remove(status_file(job, i), ec);
+  }
+  const Captured c =
+      capture({"sbatch", "--parsable", "--array=" + ranges(p.to_submit), script.string()});
+  const std::string id = trim(c.output.substr(0, c.output.find(';')));
+  if (c.code != 0 || id.empty() ||
+      !std::all_of(id.begin(), id.end(), [](unsigned char ch) { return std::isdigit(ch); }))
+    throw InputError("sbatch refused the job array (exit " + std::to_string(c.code) +
+                     "): " + trim(c.output));
+  for (int i : p.to_submit) p.sub.job_of[i] = id;
+  write_submission(job, p.sub);
+  spdlog::info("submitted job {}: shard{} {} of {} ({}), logs in {}/shard-I.log", id,
+               p.to_submit.size() > 1 ? "s" : "", ranges(p.to_submit), p.sub.shards,
+               script.string(), slurm_dir(job).string());
+  return id;
+}
+
+/// What is known of each shard while it is followed.
+struct Tracker {
+  std::vector<Phase> phase;
+  std::vector<std::string> why;    ///< a failed shard's reason
+  std::vector<int> absent;         ///< squeue looks that did not find it
+  std::vector<int> exit_code;      ///< from its status file
+  std::vector<double> gone_since;  ///< when it was first missing from the queue, s; -1 if not
+  bool ended(int i) const { return phase[i] == Phase::done || phase[i] == Phase::failed; }
+};
+
+/// The shards' own files: a status file is written when a shard's command ends.
+void read_statuses(const ArrayJob& job, int n, Tracker& t) {
+  for (int i = 0; i < n; ++i) {
+    if (t.ended(i)) continue;
+    if (const auto st = read_status(job, i)) {
+      t.exit_code[i] = st->exit;
+      if ((st->exit == 0 || st->exit == 1) && result_complete(job, i, n)) {
+        t.phase[i] = Phase::done;
+      } else {
+        t.phase[i] = Phase::failed;
+        t.why[i] = st->exit == 2 ? "exit code 2 (bad input: nothing ran)"
+                                 : "exit code " + std::to_string(st->exit);
+        if (st->exit == 0 || st->exit == 1) t.why[i] += ", but its result is incomplete";
+      }
+    }
+  }
+}
+
+/// The queue: a shard in it is pending or running; one that left it without a status file
+/// is looked up in Slurm's records. `elapsed` is the time since following began, s.
+void read_queue(const ArrayJob& job, const fs::path& script, const Submission& sub, double elapsed,
+                Tracker& t) {
+  const auto q = queue_states(script);
+  if (!q) return;
+  for (int i = 0; i < sub.shards; ++i) {
+    if (t.ended(i)) continue;
+    const std::string task = sub.job_of[i] + "_" + std::to_string(i);
+    const auto it = q->find(i);
+    if (it != q->end()) {
+      t.absent[i] = 0;
+      t.gone_since[i] = -1.0;
+      t.phase[i] =
+          it->second == "RUNNING" || it->second == "COMPLETING" ? Phase::running : Phase::pending;
+      continue;
+    }
+    // Left the queue without a status file: ask Slurm how it ended. A shard that
+    // completed but whose status file is not visible yet (a slow shared file system)
+    // gets two minutes; one Slurm has forgotten counts as failed on the second look.
+    const std::string ended = ended_state(task);
+    ++t.absent[i];
+    if (t.gone_since[i] < 0) t.gone_since[i] = elapsed;
+    if (ended.rfind("COMPLETED", 0) == 0 && elapsed - t.gone_since[i] < 120.0) continue;
+    if (ended.empty() && t.absent[i] < 2) continue;
+    // Killed after its command had written the whole result (a cancel or a time limit
+    // between the result's rename and the status file): the result is checked against
+    // its manifest's hash, so it is as good as a completed shard's.
+    if (result_complete(job, i, sub.shards)) {
+      spdlog::info(
+          "shard {} of {} (job {}) ended {} after writing its complete result; "
+          "using it",
+          i, sub.shards, task, ended.empty() ? "without a record" : ended);
+      t.phase[i] = Phase::done;
+      continue;
+    }
+    t.phase[i] = Phase::failed;
+    t.why[i] = ended.empty() ? "left the queue without a result, and Slurm has no record of "
+                               "it (cancelled before it started?)"
+                             : ended;
+  }
+}
+
+/// "3/8 done, 2 running, 3 pending, 0 failed"; `all` is set when every shard has ended.
+std::string progress_line(const Tracker& t, int n, bool& all) {
+  int n_done = 0, n_run = 0, n_pend = 0, n_fail = 0;
+  for (Phase p : t.phase) {
+    n_done += p == Phase::done;
+    n_run += p == Phase::running;
+    n_pend += p == Phase::pending;
+    n_fail += p == Phase::failed;
+  }
+  all = n_done + n_fail == n;
+  return fmt::format("{}/{} done, {} running, {} pending, {} failed", n_done, n, n_run, n_pend,
+                     n_fail);
+}
+
+/// Follows every shard until it is done or has failed, logging each change of the counts.
+/// Returns false when Ctrl-C stopped following (the shards keep running).
+bool follow_shards(const ArrayJob& job, const fs::path& script, const Plan& p, Tracker& t) {
+  const Submission& sub = p.sub;
+  const int n = sub.shards;
+  t.phase.assign(n, Phase::pending);
+  t.why.assign(n, "");
+  t.absent.assign(n, 0);
+  t.exit_code.assign(n, 0);
+  t.gone_since.assign(n, -1.0);
+  std::string jobs_label;
+  for (int i = 0; i < n; ++i) {
+    if (!p.follow[i]) {
+      t.phase[i] = Phase::done;  // complete before this run
+      if (const auto st = read_status(job, i)) t.exit_code[i] = st->exit;
+    } else if (jobs_label.find(sub.job_of[i]) == std::string::npos) {
+      jobs_label += (jobs_label.empty() ? "" : ",") + sub.job_of[i];
+    }
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  auto elapsed = [&t0] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  };
+  double next_squeue = 0.0;
+  std::string last_line;
+  g_interrupted = 0;
+  const auto old_handler = std::signal(SIGINT, on_sigint);
+  for (;;) {
+    read_statuses(job, n, t);
+    bool all_ended = true;
+    for (int i = 0; i < n; ++i) all_ended = all_ended && t.ended(i);
+    // Then the queue, less often the longer the wait (1 s at first, at most every 10 s).
+    if (!all_ended && elapsed() >= next_squeue) {
+      next_squeue = elapsed() + std::min(10.0, 1.0 + elapsed() / 30.0);
+      read_queue(job, script, sub, elapsed(), t);
+    }
+    bool all = false;
+    const std::string line = progress_line(t, n, all);
+    if (line != last_line) {
+      if (jobs_label.empty())
+        spdlog::info("slurm: {} ({:.1f} s)", line, elapsed());
+      else
+        spdlog::info("slurm job {}: {} ({:.1f} s)", jobs_label, line, elapsed());
+      last_line = line;
+    }
+    if (all) break;
+    if (g_interrupted) {
+      std::signal(SIGINT, old_handler);
+      spdlog::warn("stopped following; the shards keep running. Collect them with:\n  {}",
+                   resume_command());
+      return false;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(250));
+  }
+  std::signal(SIGINT, old_handler);
+  return true;
+}
+
+/// Run time of the shards of this submission: the union of their [start, end], s.
+double busy_seconds(const ArrayJob& job, int n, double submitted_at) {
+  std::vector<std::pair<double, double>> spans;
+  for (int i = 0; i < n; ++i)
+    if (const auto st = read_status(job, i))
+      if (st->end >= submitted_at - 1.0 && st->end >= st->start)
+        spans.emplace_back(std::max(st->start, submitted_at), st->end);
+  std::sort(spans.begin(), spans.end());
+  double busy = 0, cur_b = 0, cur_e = -1;
+  for (const auto& [b, e] : spans) {
+    if (b > cur_e) {
+      busy += std::max(0.0, cur_e - cur_b);
+      cur_b = b;
+      cur_e = e;
+    } else {
+      cur_e = std::max(cur_e, e);
+    }
+  }
+  busy += std::max(0.0, cur_e - cur_b);
+  return busy;
+}
+
+/// Logs each failed shard with its reason and its log's last lines, then how to resubmit
+/// only those. False if none failed.
+bool report_failed(const ArrayJob& job, const Submission& sub, const Tracker& t) {
+  std::vector<int> failed;
+  for (int i = 0; i < sub.shards; ++i)
+    if (t.phase[i] == Phase::failed) failed.push_back(i);
+  if (failed.empty()) return false;
+  for (int i : failed) {
+    const fs::path log = log_file(job, i);
+    const std::string tail = last_lines(log, 12);
+    spdlog::error("shard {} of {} (job {}_{}) failed: {}; log {}{}", i, sub.shards, sub.job_of[i],
+                  i, t.why[i], log.string(),
+                  tail.empty() ? " (none: it never started)" : ", last lines:\n" + tail);
+  }
+  spdlog::error("{} of {} shards failed (shard{} {}); resubmit only those with:\n  {}",
+                failed.size(), sub.shards, failed.size() > 1 ? "s" : "", ranges(failed),
+                resume_command());
+  return true;
+}
+
 }  // namespace
 
 double now_unix() {
@@ -329,268 +644,37 @@ void validate(const Request& r) {
 }
 
 Outcome run(const ArrayJob& job, const Request& r) {
-  validate(r);
-  for (const char* tool : {"sbatch", "squeue", "scontrol"})
-    if (!on_path(tool))
-      throw InputError(std::string(tool) +
-                       " not found on PATH: --slurm needs Slurm's client commands (Debian: "
-                       "slurm-client; on a cluster, a login node or `module load slurm`)");
-  const std::string out_s = job.out.string();
-  if (out_s.find_first_of(" \t\n'\"") != std::string::npos)
-    throw InputError("--out " + out_s +
-                     ": with --slurm the output folder's path must not hold "
-                     "spaces or quotes (it goes into #SBATCH lines)");
-  fs::create_directories(slurm_dir(job));
-
+  prepare(job, r);
   Outcome o;
   o.submitted_at = now_unix();
-  const auto prev = read_submission(job);
+  // Plan: which shards to (re)submit and which to follow; then submit them.
   const fs::path script = slurm_dir(job) / "job.sh";
-  const auto queue = queue_states(script);
-  auto queued = [&queue](int i) { return queue && queue->count(i) > 0; };
-  if (prev && !queue)
-    throw InputError(
-        "squeue failed, so it is unknown whether shards of the previous "
-        "submission in " +
-        out_s + " are still queued; try again");
-
-  Submission sub;
-  std::vector<int> to_submit;
-  std::vector<bool> follow;  // shards this run waits for: (re)submitted now, or still queued
-  if (r.resume) {
-    if (!prev)
-      throw InputError("--resume: nothing to resume in " + out_s +
-                       " (no slurm/job.json); "
-                       "submit without --resume first");
-    if (r.shards && r.shards != prev->shards)
-      throw InputError("--resume --shards " + std::to_string(r.shards) + ": " + out_s +
-                       " was submitted with " + std::to_string(prev->shards) +
-                       " shards; drop --shards, or start over without --resume");
-    if (prev->command != job.command)
-      throw InputError("--resume: " + out_s +
-                       " was submitted for a different command (config, options or "
-                       "program); start over without --resume");
-    sub = *prev;
-    follow.assign(sub.shards, true);
-    for (int i = 0; i < sub.shards; ++i) {
-      if (queued(i)) continue;  // still queued or running: follow it
-      if (result_complete(job, i, sub.shards))
-        follow[i] = false;
-      else
-        to_submit.push_back(i);
-    }
-    if (to_submit.empty())
-      spdlog::info("--resume: no shard to resubmit ({} complete or still queued)", sub.shards);
-    else
-      spdlog::info("--resume: resubmitting shard{} {} of {}", to_submit.size() > 1 ? "s" : "",
-                   ranges(to_submit), sub.shards);
-  } else {
-    if (prev)
-      for (int i = 0; i < prev->shards; ++i)
-        if (queued(i))
-          throw InputError(out_s + " has shards of job " + prev->job_of[i] +
-                           " still queued or running; follow them with --resume, or "
-                           "`scancel " +
-                           prev->job_of[i] + "` first");
-    sub.shards = r.shards ? r.shards : kDefaultShards;
-    sub.command = job.command;
-    sub.job_of.assign(sub.shards, "");
-    // A fresh start: no result, status or log of an earlier submission may be mistaken for
-    // one of this one.
-    std::error_code ec;
-    const int old_n = prev ? prev->shards : 0;
-    for (int n : {old_n, sub.shards})
-      for (int i = 0; i < n; ++i) {
-        fs::remove(job.result(i, n), ec);
-        fs::remove(sweep::manifest_path(job.result(i, n)), ec);
-      }
-    for (int i = 0; i < std::max(old_n, sub.shards); ++i) {
-      fs::remove(status_file(job, i), ec);
-      fs::remove(log_file(job, i), ec);
-    }
-    for (int i = 0; i < sub.shards; ++i) to_submit.push_back(i);
-    follow.assign(sub.shards, true);
-  }
-  o.shards = sub.shards;
-
-  // Submit one array of the shards to (re)run.
-  sweep::write_atomically(script, job_script(job, r, sub.shards));
-  fs::permissions(script, fs::perms::owner_exec, fs::perm_options::add);
-  if (!to_submit.empty()) {
-    for (int i : to_submit) {
-      std::error_code ec;
-      fs::remove(status_file(job, i), ec);
-    }
-    const Captured c =
-        capture({"sbatch", "--parsable", "--array=" + ranges(to_submit), script.string()});
-    const std::string id = trim(c.output.substr(0, c.output.find(';')));
-    if (c.code != 0 || id.empty() ||
-        !std::all_of(id.begin(), id.end(), [](unsigned char ch) { return std::isdigit(ch); }))
-      throw InputError("sbatch refused the job array (exit " + std::to_string(c.code) +
-                       "): " + trim(c.output));
-    for (int i : to_submit) sub.job_of[i] = id;
-    o.jobs = id;
-    write_submission(job, sub);
-    spdlog::info("submitted job {}: shard{} {} of {} ({}), logs in {}/shard-I.log", id,
-                 to_submit.size() > 1 ? "s" : "", ranges(to_submit), sub.shards, script.string(),
-                 slurm_dir(job).string());
-  }
+  Plan plan = plan_submission(job, r, script);
+  o.shards = plan.sub.shards;
+  o.jobs = submit(job, r, script, plan);
   if (!r.wait) {
     std::cout << (o.jobs.empty() ? "none" : o.jobs) << "\n";
     spdlog::info("not waiting; collect the results later with:\n  {}", resume_command());
     return o;
   }
 
-  // Follow every shard until it is done or has failed.
-  std::vector<Phase> phase(sub.shards, Phase::pending);
-  std::vector<std::string> why(sub.shards);
-  std::vector<int> absent(sub.shards, 0), exit_code(sub.shards, 0);
-  std::vector<double> gone_since(sub.shards, -1.0);
-  std::string jobs_label;
-  for (int i = 0; i < sub.shards; ++i) {
-    if (!follow[i]) {
-      phase[i] = Phase::done;  // complete before this run
-      if (const auto st = read_status(job, i)) exit_code[i] = st->exit;
-    } else if (jobs_label.find(sub.job_of[i]) == std::string::npos) {
-      jobs_label += (jobs_label.empty() ? "" : ",") + sub.job_of[i];
-    }
+  // Loop: follow every shard until it is done or has failed.
+  Tracker track;
+  if (!follow_shards(job, script, plan, track)) {
+    o.state = Outcome::State::interrupted;
+    return o;
   }
-  const auto t0 = std::chrono::steady_clock::now();
-  auto elapsed = [&t0] {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  };
-  double next_squeue = 0.0;
-  std::string last_line;
-  g_interrupted = 0;
-  const auto old_handler = std::signal(SIGINT, on_sigint);
-  for (;;) {
-    // The shards' own files first: a status file is written when a shard's command ends.
-    for (int i = 0; i < sub.shards; ++i) {
-      if (phase[i] == Phase::done || phase[i] == Phase::failed) continue;
-      if (const auto st = read_status(job, i)) {
-        exit_code[i] = st->exit;
-        if ((st->exit == 0 || st->exit == 1) && result_complete(job, i, sub.shards)) {
-          phase[i] = Phase::done;
-        } else {
-          phase[i] = Phase::failed;
-          why[i] = st->exit == 2 ? "exit code 2 (bad input: nothing ran)"
-                                 : "exit code " + std::to_string(st->exit);
-          if (st->exit == 0 || st->exit == 1) why[i] += ", but its result is incomplete";
-        }
-      }
-    }
-    const bool all_ended = std::all_of(
-        phase.begin(), phase.end(), [](Phase p) { return p == Phase::done || p == Phase::failed; });
-    // Then the queue, less often the longer the wait (1 s at first, at most every 10 s).
-    if (!all_ended && elapsed() >= next_squeue) {
-      next_squeue = elapsed() + std::min(10.0, 1.0 + elapsed() / 30.0);
-      if (const auto q = queue_states(script)) {
-        for (int i = 0; i < sub.shards; ++i) {
-          if (phase[i] == Phase::done || phase[i] == Phase::failed) continue;
-          const std::string task = sub.job_of[i] + "_" + std::to_string(i);
-          const auto it = q->find(i);
-          if (it != q->end()) {
-            absent[i] = 0;
-            gone_since[i] = -1.0;
-            phase[i] = it->second == "RUNNING" || it->second == "COMPLETING" ? Phase::running
-                                                                             : Phase::pending;
-            continue;
-          }
-          // Left the queue without a status file: ask Slurm how it ended. A shard that
-          // completed but whose status file is not visible yet (a slow shared file system)
-          // gets two minutes; one Slurm has forgotten counts as failed on the second look.
-          const std::string ended = ended_state(task);
-          ++absent[i];
-          if (gone_since[i] < 0) gone_since[i] = elapsed();
-          if (ended.rfind("COMPLETED", 0) == 0 && elapsed() - gone_since[i] < 120.0) continue;
-          if (ended.empty() && absent[i] < 2) continue;
-          // Killed after its command had written the whole result (a cancel or a time limit
-          // between the result's rename and the status file): the result is checked against
-          // its manifest's hash, so it is as good as a completed shard's.
-          if (result_complete(job, i, sub.shards)) {
-            spdlog::info(
-                "shard {} of {} (job {}) ended {} after writing its complete result; "
-                "using it",
-                i, sub.shards, task, ended.empty() ? "without a record" : ended);
-            phase[i] = Phase::done;
-            continue;
-          }
-          phase[i] = Phase::failed;
-          why[i] = ended.empty() ? "left the queue without a result, and Slurm has no record of "
-                                   "it (cancelled before it started?)"
-                                 : ended;
-        }
-      }
-    }
-    int n_done = 0, n_run = 0, n_pend = 0, n_fail = 0;
-    for (Phase p : phase) {
-      n_done += p == Phase::done;
-      n_run += p == Phase::running;
-      n_pend += p == Phase::pending;
-      n_fail += p == Phase::failed;
-    }
-    const std::string line = fmt::format("{}/{} done, {} running, {} pending, {} failed", n_done,
-                                         sub.shards, n_run, n_pend, n_fail);
-    if (line != last_line) {
-      if (jobs_label.empty())
-        spdlog::info("slurm: {} ({:.1f} s)", line, elapsed());
-      else
-        spdlog::info("slurm job {}: {} ({:.1f} s)", jobs_label, line, elapsed());
-      last_line = line;
-    }
-    if (n_done + n_fail == sub.shards) break;
-    if (g_interrupted) {
-      std::signal(SIGINT, old_handler);
-      spdlog::warn("stopped following; the shards keep running. Collect them with:\n  {}",
-                   resume_command());
-      o.state = Outcome::State::interrupted;
-      return o;
-    }
-    std::this_thread::sleep_for(std::chrono::milliseconds(250));
-  }
-  std::signal(SIGINT, old_handler);
 
-  // Run time of the shards of this submission: the union of their [start, end].
-  std::vector<std::pair<double, double>> spans;
-  for (int i = 0; i < sub.shards; ++i)
-    if (const auto st = read_status(job, i))
-      if (st->end >= o.submitted_at - 1.0 && st->end >= st->start)
-        spans.emplace_back(std::max(st->start, o.submitted_at), st->end);
-  std::sort(spans.begin(), spans.end());
-  double busy = 0, cur_b = 0, cur_e = -1;
-  for (const auto& [b, e] : spans) {
-    if (b > cur_e) {
-      busy += std::max(0.0, cur_e - cur_b);
-      cur_b = b;
-      cur_e = e;
-    } else {
-      cur_e = std::max(cur_e, e);
-    }
-  }
-  busy += std::max(0.0, cur_e - cur_b);
-  o.busy_seconds = busy;
-
-  std::vector<int> failed;
-  for (int i = 0; i < sub.shards; ++i)
-    if (phase[i] == Phase::failed) failed.push_back(i);
-  if (!failed.empty()) {
-    for (int i : failed) {
-      const fs::path log = log_file(job, i);
-      const std::string tail = last_lines(log, 12);
-      spdlog::error("shard {} of {} (job {}_{}) failed: {}; log {}{}", i, sub.shards, sub.job_of[i],
-                    i, why[i], log.string(),
-                    tail.empty() ? " (none: it never started)" : ", last lines:\n" + tail);
-    }
-    spdlog::error("{} of {} shards failed (shard{} {}); resubmit only those with:\n  {}",
-                  failed.size(), sub.shards, failed.size() > 1 ? "s" : "", ranges(failed),
-                  resume_command());
+  // Report: the shards' run time, then the failed shards or the results.
+  o.busy_seconds = busy_seconds(job, plan.sub.shards, o.submitted_at);
+  if (report_failed(job, plan.sub, track)) {
     o.state = Outcome::State::failed;
     return o;
   }
   o.state = Outcome::State::complete;
-  for (int i = 0; i < sub.shards; ++i) {
-    o.results.push_back(job.result(i, sub.shards));
-    o.worst_exit = std::max(o.worst_exit, exit_code[i]);
+  for (int i = 0; i < plan.sub.shards; ++i) {
+    o.results.push_back(job.result(i, plan.sub.shards));
+    o.worst_exit = std::max(o.worst_exit, track.exit_code[i]);
   }
   return o;
 }

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
+#include <functional>
 #include <iostream>
 #include <limits>
 #include <map>
@@ -19,7 +20,6 @@
 #include "core/format.hpp"
 #include "core/json_read.hpp"
 #include "core/simulation.hpp"
-#include "core/stop_signals.hpp"
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -163,6 +163,179 @@ int class_code(const std::string& c) {
   return 5;
 }
 
+/// Checks case `ci` of the config (its keys and limits, each limit from the case or else the
+/// config's top level) and reads it, its scene included; its kind's axes come later.
+Case read_case(const sweep::Config& cfg, const json& cj, std::size_t ci,
+               const sweep::CaseAt& where) {
+  const json& d = cfg.doc;
+  const std::string& cw = where.where;
+  const Loc& at = where.at;
+  const Loc top{cfg.file.string(), ""};
+  check_keys(cj,
+             {"name", "kind", "scene", "dt", "integrators", "backends", "energy_blowup",
+              "penetration_tolerance", "displacement_limit", "stiffness", "speeds", "thickness"},
+             at);
+  Case c;
+  c.name = read_string_or(cj, "name", "case" + std::to_string(ci), at);
+  c.kind = read_string_or(cj, "kind", "run", at);
+  c.blowup = read_number_or(cj, "energy_blowup", read_number_or(d, "energy_blowup", 1.0, top), at);
+  c.pen_tol = read_number_or(cj, "penetration_tolerance",
+                             read_number_or(d, "penetration_tolerance", 1e-3, top), at);
+  c.displacement_limit = read_number_or(cj, "displacement_limit", 0.0, at);
+  // Checked here, once (as the schema says): a blow-up factor <= 0 once made every point
+  // an "error" row and the sweep exit 0.
+  const auto where_of = [&](const char* key) { return cj.contains(key) ? at / key : top / key; };
+  if (!(c.blowup > 0.0 && c.blowup < HUGE_VAL))
+    where_of("energy_blowup").fail("must be a number > 0, got " + num(c.blowup));
+  if (!(c.pen_tol >= 0.0 && c.pen_tol < HUGE_VAL))
+    where_of("penetration_tolerance").fail("must be a number >= 0, got " + num(c.pen_tol));
+  if (!(c.displacement_limit >= 0.0 && c.displacement_limit < HUGE_VAL))
+    (at / "displacement_limit")
+        .fail("must be a number >= 0 (0: off), got " + num(c.displacement_limit));
+  if (c.kind != "tunnelling") {
+    if (!cj.contains("scene")) throw InputError(cw + ".scene: required");
+    c.doc = sweep::scene_doc(cfg, cj["scene"], c.base);
+  } else {
+    c.base = cfg.dir;
+  }
+  return c;
+}
+
+/// The axes only some kinds have: stiffness values (and the path they override), ball
+/// speeds and wall thicknesses; one NaN for an axis the kind does not have.
+struct KindAxes {
+  std::vector<double> ks = {kNaN}, speeds = {kNaN}, thick = {kNaN};
+};
+
+/// Reads case `c`'s kind axes from its JSON `cj` (and sets c.stiffness_path); InputError for
+/// an unknown kind.
+KindAxes read_kind_axes(const json& cj, const sweep::CaseAt& where, Case& c) {
+  const std::string& cw = where.where;
+  const Loc& at = where.at;
+  KindAxes k;
+  if (c.kind == "stiffness") {
+    if (!cj.contains("stiffness") || !cj["stiffness"].is_object())
+      throw InputError(cw + ".stiffness: expected {\"path\": ..., \"values\": [...]}");
+    check_keys(cj["stiffness"], {"path", "values"}, at / "stiffness");
+    c.stiffness_path = read_string_or(cj["stiffness"], "path", "", at / "stiffness");
+    k.ks = sweep::numbers(cj["stiffness"].value("values", json()), cw + ".stiffness.values");
+  } else if (c.kind == "tunnelling") {
+    k.speeds = sweep::numbers(cj.value("speeds", json()), cw + ".speeds");
+    k.thick = sweep::numbers(cj.value("thickness", json()), cw + ".thickness");
+  } else if (c.kind != "run") {
+    throw InputError(cw + ".kind: expected stiffness, tunnelling or run");
+  }
+  return k;
+}
+
+/// What a stress config asks for: its cases and the points crossing their axes (backends
+/// outermost, dt innermost).
+struct Plan {
+  std::vector<Case> cases;
+  std::vector<Point> points;
+};
+
+/// Reads and checks the whole config; InputError names what is wrong and where.
+Plan read_plan(const sweep::Config& cfg) {
+  const json& d = cfg.doc;
+  const std::string where = cfg.file.string();
+  const json& cases_j = sweep::cases(cfg);
+  check_keys(d,
+             {"$schema", "description", "cases", "integrators", "backends", "dt", "energy_blowup",
+              "penetration_tolerance"},
+             {where, ""});
+  Plan plan;
+  for (std::size_t ci = 0; ci < cases_j.size(); ++ci) {
+    const json& cj = cases_j[ci];
+    const sweep::CaseAt where = sweep::case_at(cfg, ci);
+    Case c = read_case(cfg, cj, ci, where);
+    const sweep::Axes ax = sweep::case_axes(cfg, cj, where.where);
+    const KindAxes kx = read_kind_axes(cj, where, c);
+    for (const json& b : ax.backends)
+      for (const std::string& in : ax.integrators)
+        for (double k : kx.ks)
+          for (double sp : kx.speeds)
+            for (double th : kx.thick)
+              for (double dt : ax.dts) {
+                Point p{plan.points.size(), plan.cases.size(), b, in, dt};
+                p.stiffness = k;
+                p.speed = sp;
+                p.thickness = th;
+                plan.points.push_back(p);
+              }
+    plan.cases.push_back(std::move(c));
+  }
+  return plan;
+}
+
+/// What makes shards parts of one sweep: the config and every case's scene.
+std::string inputs_of(const sweep::Config& cfg, const Plan& plan) {
+  std::vector<const json*> scenes;
+  for (const Case& c : plan.cases) scenes.push_back(&c.doc);
+  return sweep::sweep_inputs("stress", cfg, "", scenes);
+}
+
+/// Runs the points of a plan, each to its CSV row and a log line; a stiffness case's w_max
+/// is computed once per stiffness and kept.
+class PointRunner {
+ public:
+  explicit PointRunner(const Plan& plan) : plan_(plan), loader_(plugin_search_dirs()) {}
+
+  std::vector<std::string> operator()(std::size_t i) {
+    const Point& p = plan_.points[i];
+    const Case& c = plan_.cases[p.case_index];
+    const double w = omega(p, c);
+    Outcome r;
+    try {
+      r = run_point(c, p, loader_);
+    } catch (const std::exception& e) {
+      r.cls = std::string("error: ") + e.what();
+      std::replace(r.cls.begin(), r.cls.end(), ',', ';');
+      std::replace(r.cls.begin(), r.cls.end(), '\n', ' ');
+    }
+    const auto it = p.backend.is_object() ? p.backend.find("name") : p.backend.end();
+    const std::string bname = it == p.backend.end() ? (p.backend.is_object() ? "?" : "scene")
+                              : it->is_string()     ? it->get<std::string>()
+                                                    : "?";
+    spdlog::info("[{}/{}] {} {} {} dt={} k={} v={} w={}: {} (step {}, particle {})", p.index + 1,
+                 plan_.points.size(), c.name, bname, p.integrator, p.dt, num(p.stiffness),
+                 num(p.speed), num(p.thickness), r.cls, r.bad_step, r.particle);
+    return {std::to_string(p.index),
+            c.name,
+            c.kind,
+            bname,
+            p.integrator,
+            num(p.dt),
+            num(p.stiffness),
+            num(w),
+            num(p.dt * w),
+            num(p.speed),
+            num(p.thickness),
+            r.cls,
+            std::to_string(r.bad_step),
+            std::to_string(r.particle),
+            num(r.max_pen),
+            num(r.drift),
+            std::to_string(r.steps),
+            num(r.wall)};
+  }
+
+ private:
+  /// A stiffness case's w_max at point p's stiffness; NaN for the other kinds.
+  double omega(const Point& p, const Case& c) {
+    if (c.kind != "stiffness") return kNaN;
+    auto key = std::make_pair(p.case_index, p.stiffness);
+    if (!wmax_.count(key))
+      wmax_[key] = omega_max(
+          sweep::make_scene(c.doc, {{c.stiffness_path, p.stiffness}}, c.name, c.base), loader_);
+    return wmax_[key];
+  }
+
+  const Plan& plan_;
+  PluginLoader loader_;
+  std::map<std::pair<std::size_t, double>, double> wmax_;
+};
+
 }  // namespace
 
 double theory_limit(const std::string& in) {
@@ -184,134 +357,17 @@ const std::vector<std::string>& columns() {
 
 int run(const Options& o) {
   const sweep::Config cfg = sweep::load_config(o.config);
-  const json& d = cfg.doc;
-  const std::string where = cfg.file.string();
-  const json& cases_j = sweep::cases(cfg);
-  check_keys(d,
-             {"$schema", "description", "cases", "integrators", "backends", "dt", "energy_blowup",
-              "penetration_tolerance"},
-             {where, ""});
-  std::vector<Case> cases;
-  std::vector<Point> points;
-  for (std::size_t ci = 0; ci < cases_j.size(); ++ci) {
-    const json& cj = cases_j[ci];
-    const std::string cw = where + ": cases[" + std::to_string(ci) + "]";
-    check_keys(cj,
-               {"name", "kind", "scene", "dt", "integrators", "backends", "energy_blowup",
-                "penetration_tolerance", "displacement_limit", "stiffness", "speeds", "thickness"},
-               Loc{where, "cases"}[ci]);
-    const Loc at = Loc{where, "cases"}[ci], top{where, ""};
-    Case c;
-    c.name = read_string_or(cj, "name", "case" + std::to_string(ci), at);
-    c.kind = read_string_or(cj, "kind", "run", at);
-    c.blowup =
-        read_number_or(cj, "energy_blowup", read_number_or(d, "energy_blowup", 1.0, top), at);
-    c.pen_tol = read_number_or(cj, "penetration_tolerance",
-                               read_number_or(d, "penetration_tolerance", 1e-3, top), at);
-    c.displacement_limit = read_number_or(cj, "displacement_limit", 0.0, at);
-    // Checked here, once (as the schema says): a blow-up factor <= 0 once made every point
-    // an "error" row and the sweep exit 0.
-    const auto where_of = [&](const char* key) { return cj.contains(key) ? at / key : top / key; };
-    if (!(c.blowup > 0.0 && c.blowup < HUGE_VAL))
-      where_of("energy_blowup").fail("must be a number > 0, got " + num(c.blowup));
-    if (!(c.pen_tol >= 0.0 && c.pen_tol < HUGE_VAL))
-      where_of("penetration_tolerance").fail("must be a number >= 0, got " + num(c.pen_tol));
-    if (!(c.displacement_limit >= 0.0 && c.displacement_limit < HUGE_VAL))
-      (at / "displacement_limit")
-          .fail("must be a number >= 0 (0: off), got " + num(c.displacement_limit));
-    if (c.kind != "tunnelling") {
-      if (!cj.contains("scene")) throw InputError(cw + ".scene: required");
-      c.doc = sweep::scene_doc(cfg, cj["scene"], c.base);
-    } else {
-      c.base = cfg.dir;
-    }
-    const sweep::Axes ax = sweep::case_axes(cfg, cj, cw);
-    std::vector<double> ks = {kNaN}, speeds = {kNaN}, thick = {kNaN};
-    if (c.kind == "stiffness") {
-      if (!cj.contains("stiffness") || !cj["stiffness"].is_object())
-        throw InputError(cw + ".stiffness: expected {\"path\": ..., \"values\": [...]}");
-      check_keys(cj["stiffness"], {"path", "values"}, Loc{where, "cases"}[ci] / "stiffness");
-      c.stiffness_path = read_string_or(cj["stiffness"], "path", "", at / "stiffness");
-      ks = sweep::numbers(cj["stiffness"].value("values", json()), cw + ".stiffness.values");
-    } else if (c.kind == "tunnelling") {
-      speeds = sweep::numbers(cj.value("speeds", json()), cw + ".speeds");
-      thick = sweep::numbers(cj.value("thickness", json()), cw + ".thickness");
-    } else if (c.kind != "run") {
-      throw InputError(cw + ".kind: expected stiffness, tunnelling or run");
-    }
-    for (const json& b : ax.backends)
-      for (const std::string& in : ax.integrators)
-        for (double k : ks)
-          for (double sp : speeds)
-            for (double th : thick)
-              for (double dt : ax.dts) {
-                Point p{points.size(), cases.size(), b, in, dt};
-                p.stiffness = k;
-                p.speed = sp;
-                p.thickness = th;
-                points.push_back(p);
-              }
-    cases.push_back(std::move(c));
-  }
+  const Plan plan = read_plan(cfg);
   if (o.check_only) return 0;
-
+  PointRunner points(plan);
   sweep::Sweep sw;
   sw.tool = "stress";
   sw.columns = columns();
-  sw.points = points.size();
-  // What makes shards parts of one sweep: the config, every case's scene, the options.
-  sw.inputs = "stress\n" + d.dump();
-  for (const Case& c : cases) sw.inputs += "\n" + c.doc.dump();
-  PluginLoader loader(plugin_search_dirs());
-  std::map<std::pair<std::size_t, double>, double> wmax;
-  sw.run_point = [&](std::size_t i) -> std::vector<std::string> {
-    const Point& p = points[i];
-    const Case& c = cases[p.case_index];
-    double w = kNaN;
-    if (c.kind == "stiffness") {
-      auto key = std::make_pair(p.case_index, p.stiffness);
-      if (!wmax.count(key))
-        wmax[key] = omega_max(
-            sweep::make_scene(c.doc, {{c.stiffness_path, p.stiffness}}, c.name, c.base), loader);
-      w = wmax[key];
-    }
-    Outcome r;
-    try {
-      r = run_point(c, p, loader);
-    } catch (const std::exception& e) {
-      r.cls = std::string("error: ") + e.what();
-      std::replace(r.cls.begin(), r.cls.end(), ',', ';');
-      std::replace(r.cls.begin(), r.cls.end(), '\n', ' ');
-    }
-    const auto it = p.backend.is_object() ? p.backend.find("name") : p.backend.end();
-    const std::string bname = it == p.backend.end() ? (p.backend.is_object() ? "?" : "scene")
-                              : it->is_string()     ? it->get<std::string>()
-                                                    : "?";
-    spdlog::info("[{}/{}] {} {} {} dt={} k={} v={} w={}: {} (step {}, particle {})", p.index + 1,
-                 points.size(), c.name, bname, p.integrator, p.dt, num(p.stiffness), num(p.speed),
-                 num(p.thickness), r.cls, r.bad_step, r.particle);
-    return {std::to_string(p.index),
-            c.name,
-            c.kind,
-            bname,
-            p.integrator,
-            num(p.dt),
-            num(p.stiffness),
-            num(w),
-            num(p.dt * w),
-            num(p.speed),
-            num(p.thickness),
-            r.cls,
-            std::to_string(r.bad_step),
-            std::to_string(r.particle),
-            num(r.max_pen),
-            num(r.drift),
-            std::to_string(r.steps),
-            num(r.wall)};
-  };
+  sw.points = plan.points.size();
+  sw.inputs = inputs_of(cfg, plan);
+  sw.run_point = std::ref(points);
   sw.report = report;
-  if (const int sig = sweep::drive(sw, o.shard, o.out, where, o.resume)) return stop_exit_code(sig);
-  return 0;
+  return sweep::exit_code(sweep::drive(sw, o.shard, o.out, cfg.file.string(), o.resume), 0);
 }
 
 void report(const sweep::Table& t, const fs::path& out) {

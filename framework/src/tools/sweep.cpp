@@ -348,6 +348,21 @@ Axes case_axes(const Config& cfg, const nlohmann::json& c, const std::string& wh
   return a;
 }
 
+CaseAt case_at(const Config& cfg, std::size_t i) {
+  const std::string file = cfg.file.string();
+  return {file + ": cases[" + std::to_string(i) + "]", Loc{file, "cases"}[i]};
+}
+
+std::string sweep_inputs(const std::string& tool, const Config& cfg, const std::string& options,
+                         const std::vector<const nlohmann::json*>& scenes) {
+  std::string s = tool + "\n" + cfg.doc.dump() + options;
+  for (const nlohmann::json* scene : scenes) {
+    s += '\n';
+    s += scene->dump();
+  }
+  return s;
+}
+
 fs::path csv_path(const fs::path& out, const std::string& tool, const Shard& shard) {
   return out / (tool + shard.suffix() + ".csv");
 }
@@ -449,5 +464,7 @@ int drive(const Sweep& s, const Shard& shard, const fs::path& out, const std::st
                  out.string(), out.string(), s.tool);
   return 0;
 }
+
+int exit_code(int signal, int code) { return signal != 0 ? stop_exit_code(signal) : code; }
 
 }  // namespace pinsim::sweep

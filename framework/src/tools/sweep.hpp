@@ -13,6 +13,7 @@
 #include <string_view>
 #include <vector>
 
+#include "core/json_read.hpp"
 #include "core/scene.hpp"
 
 namespace pinsim::sweep {
@@ -128,6 +129,18 @@ struct Axes {
 /// The axes of case `c`; `where` names it in messages ("bench.json: cases[2]").
 Axes case_axes(const Config& cfg, const nlohmann::json& c, const std::string& where);
 
+/// Where case i of a config is, as messages name it.
+struct CaseAt {
+  std::string where;  ///< "bench.json: cases[2]"
+  Loc at;             ///< the file and the JSON path cases[2]
+};
+CaseAt case_at(const Config& cfg, std::size_t i);
+
+/// What makes shards parts of one sweep (Sweep::inputs): the tool's name, the config,
+/// `options` (the command line's part, "\nrepeats=3", or ""), then every case's scene.
+std::string sweep_inputs(const std::string& tool, const Config& cfg, const std::string& options,
+                         const std::vector<const nlohmann::json*>& scenes);
+
 /// What a sweep tool supplies; the driver does the rest.
 struct Sweep {
   std::string tool;                  ///< "bench" or "stress": CSV name, manifest's tool
@@ -160,5 +173,9 @@ std::filesystem::path partial_path(const std::filesystem::path& out, const std::
 /// (the config) names the log lines.
 int drive(const Sweep& s, const Shard& shard, const std::filesystem::path& out,
           const std::string& where, bool resume = false);
+
+/// A sweep tool's exit code once drive returned `signal`: 128 + the signal that stopped the
+/// sweep, else the tool's own `code` (0, or 1 when a point failed and the tool says so).
+int exit_code(int signal, int code);
 
 }  // namespace pinsim::sweep
