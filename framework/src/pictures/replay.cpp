@@ -9,6 +9,7 @@
 #include "core/base64.hpp"
 #include "core/output_file.hpp"
 #include "core/simulation.hpp"
+#include "pictures/cairo_handles.hpp"
 #include "pictures/render.hpp"
 #include "pictures/render_field.hpp"
 
@@ -104,19 +105,18 @@ ViewBox replay_view(const RunData& run, const Scene* scene, const ObstacleBacken
 /// The background as PNG bytes: the static obstacles' field (contour lines spaced for
 /// `view`) on the paper colour.
 std::string background_png(const ObstacleBackends& b, const PixelMap& map, const ViewBox& view) {
-  cairo_surface_t* bg = cairo_image_surface_create(CAIRO_FORMAT_ARGB32, map.width, map.height);
-  cairo_t* cr = cairo_create(bg);
-  cairo_set_source_rgb(cr, 0.97, 0.95, 0.90);
-  cairo_paint(cr);
-  if (b.fixed && b.fixed->has_distance()) {
-    const FieldGrid g = sample_field(
-        [&](double x, double y) { return b.fixed->distance(x, y, 0.0, nullptr); }, map, 1);
-    draw_field(cr, map, g, contour_spacing(view));
+  const CairoSurface bg = image_surface(map.width, map.height);
+  {
+    const CairoContext cr = cairo_context(bg.get());
+    cairo_set_source_rgb(cr.get(), 0.97, 0.95, 0.90);
+    cairo_paint(cr.get());
+    if (b.fixed && b.fixed->has_distance()) {
+      const FieldGrid g = sample_field(
+          [&](double x, double y) { return b.fixed->distance(x, y, 0.0, nullptr); }, map, 1);
+      draw_field(cr.get(), map, g, contour_spacing(view));
+    }
   }
-  cairo_destroy(cr);
-  std::string png = png_bytes(bg);
-  cairo_surface_destroy(bg);
-  return png;
+  return png_bytes(bg.get());
 }
 
 /// The moving obstacles' frames (moving_frames) when they and the static ones have a
