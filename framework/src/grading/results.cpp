@@ -10,6 +10,7 @@
 #include <stdexcept>
 
 #include "core/format.hpp"
+#include "core/html_text.hpp"
 #include "grading/sandbox.hpp"
 #include "grading/text.hpp"
 
@@ -45,21 +46,8 @@ std::string xml_escape(const std::string& raw) {
   return o;
 }
 
-/// Text for HTML: sanitized, with &, < and > escaped (quotes only matter in attributes).
-std::string html_escape(const std::string& raw) {
-  std::string o;
-  for (char c : sanitize_text(raw)) {
-    if (c == '&')
-      o += "&amp;";
-    else if (c == '<')
-      o += "&lt;";
-    else if (c == '>')
-      o += "&gt;";
-    else
-      o += c;
-  }
-  return o;
-}
+/// Text for HTML: sanitized, then escaped.
+std::string html_escape(const std::string& raw) { return html_text(sanitize_text(raw)); }
 
 /// A block of preformatted text (empty for none), without the newlines it starts and ends
 /// with.

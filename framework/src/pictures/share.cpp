@@ -2,27 +2,14 @@
 
 #include <stdexcept>
 
+#include "core/html_text.hpp"
+
 namespace pinsim {
 namespace {
 void replace_once(std::string& s, const std::string& key, const std::string& value) {
   const auto at = s.find(key);
   if (at == std::string::npos) throw std::logic_error("share template lacks " + key);
   s.replace(at, key.size(), value);
-}
-
-std::string html_text(const std::string& s) {
-  std::string out;
-  for (char c : s) {
-    if (c == '<')
-      out += "&lt;";
-    else if (c == '>')
-      out += "&gt;";
-    else if (c == '&')
-      out += "&amp;";
-    else
-      out += c;
-  }
-  return out;
 }
 }  // namespace
 
