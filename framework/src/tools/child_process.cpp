@@ -67,4 +67,20 @@ pid_t wait_any_child(const std::atomic<int>* stop) {
   }
 }
 
+Captured capture(const std::vector<std::string>& argv) {
+  const Child child = start_child(argv, ChildOutput::Capture);
+  Captured r;
+  char buf[4096];
+  for (;;) {
+    const ssize_t n = ::read(child.out, buf, sizeof buf);
+    if (n > 0)
+      r.output.append(buf, static_cast<std::size_t>(n));
+    else if (n == 0 || errno != EINTR)
+      break;
+  }
+  ::close(child.out);
+  r.code = wait_child(child.pid);
+  return r;
+}
+
 }  // namespace pinsim

@@ -32,6 +32,15 @@ Child start_child(const std::vector<std::string>& argv, ChildOutput output);
 /// Waits for child `pid`; its exit code, or -1 if it did not exit normally.
 int wait_child(pid_t pid);
 
+/// What a finished child printed, and how it ended.
+struct Captured {
+  int code = -1;       ///< exit code; -1 if it did not exit normally, 127 if it could not start
+  std::string output;  ///< its stdout and stderr together
+};
+
+/// Runs argv (no shell) to its end, capturing stdout and stderr together.
+Captured capture(const std::vector<std::string>& argv);
+
 /// Waits for any child of this process; its pid, or -1 when there is none left. With `stop`,
 /// also returns 0 as soon as *stop is non-zero (a stop signal, polled every 20 ms).
 pid_t wait_any_child(const std::atomic<int>* stop = nullptr);

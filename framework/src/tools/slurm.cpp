@@ -30,28 +30,6 @@ namespace {
 
 // ---- small helpers ------------------------------------------------------------------------
 
-struct Captured {
-  int code = -1;  ///< exit code; -1 if it did not exit normally, 127 if it could not start
-  std::string output;
-};
-
-/// Runs argv (no shell), capturing stdout and stderr together.
-Captured capture(const std::vector<std::string>& argv) {
-  const Child child = start_child(argv, ChildOutput::Capture);
-  Captured r;
-  char buf[4096];
-  for (;;) {
-    const ssize_t n = ::read(child.out, buf, sizeof buf);
-    if (n > 0)
-      r.output.append(buf, static_cast<std::size_t>(n));
-    else if (n == 0 || errno != EINTR)
-      break;
-  }
-  ::close(child.out);
-  r.code = wait_child(child.pid);
-  return r;
-}
-
 bool on_path(const std::string& name) {
   const char* path = std::getenv("PATH");
   std::stringstream ss(path ? path : "/usr/bin:/bin");

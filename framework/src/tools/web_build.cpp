@@ -1,9 +1,6 @@
 #include "tools/web_build.hpp"
 
-#include <unistd.h>
-
 #include <algorithm>
-#include <cerrno>
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
@@ -32,20 +29,11 @@ void run_step(const std::vector<std::string>& argv, const std::string& what, std
   log += "$";
   for (const auto& a : argv) log += " " + a;
   log += "\n";
-  Child c = start_child(argv, ChildOutput::Capture);
-  char buf[4096];
-  for (ssize_t n; (n = ::read(c.out, buf, sizeof buf)) != 0;) {
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      break;
-    }
-    log.append(buf, static_cast<std::size_t>(n));
-  }
-  ::close(c.out);
-  const int code = wait_child(c.pid);
-  if (code == 0) return;
-  std::string why =
-      code == 127 ? argv[0] + " could not be run" : "exit code " + std::to_string(code);
+  const Captured c = capture(argv);
+  log += c.output;
+  if (c.code == 0) return;
+  const std::string why =
+      c.code == 127 ? argv[0] + " could not be run" : "exit code " + std::to_string(c.code);
   throw std::runtime_error(what + " failed (" + why + "); the end of its output:\n" +
                            tail(log, 40));
 }
