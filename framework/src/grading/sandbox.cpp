@@ -223,7 +223,12 @@ std::vector<std::string> host_args(const SandboxSpec& spec, std::vector<std::str
   // grader's uid already owns some, which count too.
   const int nproc = l.processes + (::geteuid() == 0 ? 0 : own_process_count());
   set_limit(RLIMIT_NPROC, static_cast<rlim_t>(nproc), static_cast<rlim_t>(nproc));
-  if (!cwd.empty() && ::chdir(cwd.c_str()) != 0) ::_exit(126);
+  if (!cwd.empty() && ::chdir(cwd.c_str()) != 0) {
+    const std::string msg =
+        "cannot enter the step's folder " + cwd + ": " + std::strerror(errno) + "\n";
+    [[maybe_unused]] const auto w = ::write(STDERR_FILENO, msg.data(), msg.size());
+    ::_exit(126);
+  }
   std::vector<char*> c;
   for (const auto& s : args) c.push_back(const_cast<char*>(s.c_str()));
   c.push_back(nullptr);
@@ -279,7 +284,7 @@ void sweep_step(Sandboxed& s) {
     fs::remove_all(s.tmp, ec);
     s.tmp.clear();
   }
-  if (fallback::support().landlock_abi == 0) fallback::remove_uid_files(uid);
+  if (fallback::support().landlock_abi == 0) fallback::remove_uid_files(uid, s.kept);
 }
 
 }  // namespace
@@ -484,6 +489,8 @@ Sandboxed start_sandboxed(const std::vector<std::string>& argv, const SandboxSpe
   s.channel_fd = chan[0];
   s.fallback = fallback;
   s.tmp = tmp;
+  for (const auto& m : spec.mounts)
+    if (m.writable && !m.inside.empty()) s.kept.push_back(m.host);
   ::fcntl(s.output_fd, F_SETFL, O_NONBLOCK);
   if (info[0] >= 0) {
     s.inner = read_inner_pid(info[0], 10.0);

@@ -47,6 +47,9 @@ struct Sandboxed {
   int channel_fd = -1;
   bool fallback = false;  ///< started in the fallback sandbox: its uid is swept at the end
   std::string tmp;        ///< the fallback's private folder for the step ("" otherwise)
+  /// The host folders the step was given to write (its writable mounts: a source
+  /// submission's build folder): what the uid keeps there is not swept after the step.
+  std::vector<std::string> kept;
 };
 
 /// How a step ended.

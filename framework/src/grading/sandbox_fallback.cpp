@@ -14,6 +14,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstddef>
@@ -288,7 +289,23 @@ void kill_uid(uid_t uid) {
   }
 }
 
-void remove_uid_files(uid_t uid) {
+void remove_uid_files(uid_t uid, const std::vector<std::string>& kept) {
+  std::vector<fs::path> keep;
+  for (const auto& k : kept) {
+    std::error_code ec;
+    keep.push_back(fs::weakly_canonical(k, ec));
+    if (ec) keep.back() = fs::path(k).lexically_normal();
+  }
+  // p is a kept folder or inside one
+  auto is_kept = [&](const fs::path& p) {
+    std::error_code ec;
+    fs::path c = fs::weakly_canonical(p, ec);
+    if (ec) c = p.lexically_normal();
+    for (const auto& k : keep) {
+      if (std::mismatch(k.begin(), k.end(), c.begin(), c.end()).first == k.end()) return true;
+    }
+    return false;
+  };
   for (const char* root : {"/tmp", "/var/tmp", "/dev/shm"}) {
     std::error_code ec;
     std::vector<fs::path> found;
@@ -298,6 +315,10 @@ void remove_uid_files(uid_t uid) {
       struct stat st {};
       if (::lstat(it->path().c_str(), &st) != 0 || st.st_uid != uid) {
         if (it.depth() >= 3) it.disable_recursion_pending();
+        continue;
+      }
+      if (is_kept(it->path())) {
+        it.disable_recursion_pending();
         continue;
       }
       found.push_back(it->path());

@@ -58,8 +58,10 @@ class Confinement {
 void kill_uid(uid_t uid);
 
 /// Removes what `uid` left in the machine's world-writable folders (/tmp, /var/tmp,
-/// /dev/shm): needed where Landlock does not keep it out of them.
-void remove_uid_files(uid_t uid);
+/// /dev/shm): needed where Landlock does not keep it out of them. The folders in `kept` (the
+/// ones the grader gave the step to write, such as a source submission's build folder under
+/// $TMPDIR) and what is inside them stay.
+void remove_uid_files(uid_t uid, const std::vector<std::string>& kept);
 
 /// One path the grader keeps to itself, and how the probe tries it.
 struct Probe {

@@ -6,12 +6,20 @@
 #          (PINSIM_BIN): the shipped force plugins get full marks, a source folder that does
 #          not compile 0 with the compiler's message, a grader that leaves an empty
 #          results.json a valid file with score 0.
+#   fallback: (root only, else exit 77: skipped) as Gradescope's Docker container runs it:
+#          the zip's run_autograder under container_like without Landlock, so in the
+#          fallback sandbox on file permissions alone, with TMPDIR unset (the grader's staging
+#          folders in /tmp, beside what it sweeps), grading a source submission with this
+#          build installed in a root-only prefix (only the SDK readable, as run_autograder
+#          leaves the zip's build; the build tree's plugin folder hidden): the same score as
+#          the same grader gives it in bubblewrap, more than 0, said to be the fallback.
 #   build: the zip's setup.sh as Gradescope runs it (apt skipped: the packages are here; no
 #          ccache), then its run_autograder with the pinsim it built: the correct source
-#          submission gets exactly the points of its plugin's tests, one that does not
+#          submission gets the score this build's grader gives it, one that does not
 #          compile 0; as root also under container_like without Landlock (Docker's defaults:
 #          the fallback sandbox, with run_autograder's permissions).
-# Usage: test_gradescope_pack.sh quick|build SOURCE_DIR PINSIM_BIN PLUGIN_DIR [CONTAINER_LIKE]
+# Usage: test_gradescope_pack.sh quick|fallback|build SOURCE_DIR PINSIM_BIN PLUGIN_DIR
+#        [CONTAINER_LIKE]
 set -euo pipefail
 mode=$1 src=$2 bin=$3 plugins=$4 container_like=${5:-}
 tmp=$(mktemp -d "${TMPDIR:-/tmp}/pinsim-gradescope.XXXXXX")
@@ -26,6 +34,11 @@ unpack() {  # unpack ZIP: a fresh ROOT with the zip in ROOT/source, as Gradescop
   rm -rf "$root"
   mkdir -p "$root/source" "$root/submission" "$root/results"
   unzip -q "$1" -d "$root/source"
+}
+
+# score_of RESULTS: a results.json's score
+score_of() {
+  python3 -c 'import json, sys; print(json.load(open(sys.argv[1], encoding="utf-8"))["score"])' "$1"
 }
 
 # check RESULTS EXPECTED_SCORE PATTERN [MODE]: the score, a pattern in some test's output and
@@ -46,12 +59,6 @@ if not ok:
     print(json.dumps(r, indent=1)[:3000])
 sys.exit(0 if ok else 1)
 PY
-}
-
-# The points of the force rubric's tests of one plugin.
-points_of() {
-  python3 -c 'import json, sys; r = json.load(open(sys.argv[1])); print(sum(t["points"] for t in r["tests"] if t["plugin"] == sys.argv[2]))' \
-    "$rubric" "$1"
 }
 
 "$bin" -q gradescope-pack --rubric "$rubric" --out "$tmp/autograder.zip" ||
@@ -169,7 +176,46 @@ PY
   exit 0
 fi
 
+if [ "$mode" = fallback ]; then
+  if [ "$(id -u)" -ne 0 ] || [ -z "$container_like" ]; then
+    echo "not root (or no container_like): the fallback sandbox cannot be tried"
+    exit 77
+  fi
+  unpack "$tmp/autograder.zip"
+  chmod 711 "$tmp"  # /autograder's parent, /, lets every uid through
+  # This build installed where only root reads it but the SDK (headers, CMake package and
+  # the scene-field library a source submission links), as run_autograder leaves the zip's
+  # build: the grader refuses to grade in the fallback if its reference plugins are readable.
+  prefix=$tmp/prefix
+  cmake --install "$(dirname "$(dirname "$bin")")" --prefix "$prefix" >/dev/null
+  chmod -R go-rwx "$prefix"
+  chmod go+x "$prefix" "$prefix/lib"
+  chmod -R go+rX "$prefix/include" "$prefix/lib/cmake" "$prefix"/lib/*.a
+  cp -r "$subs/correct_source/." "$root/submission/"
+  AUTOGRADER_ROOT=$root PINSIM_BIN=$prefix/bin/pinsim "$root/source/run_autograder" >/dev/null
+  in_bwrap=$(score_of "$root/results/results.json")
+  check "$root/results/results.json" "$in_bwrap" "loaded plugin" bubblewrap
+  python3 -c 'import sys; sys.exit(0 if float(sys.argv[1]) > 0 else 1)' "$in_bwrap" ||
+    fail "the correct source submission scored 0 in bubblewrap"
+  rm -rf "$root/results"/*
+  # The installed program also searches this build tree's plugin folder (after its own),
+  # which every uid can read here and which Gradescope's image does not have: in a mount
+  # namespace of the test's own it is an empty root-only folder.
+  unshare --mount --propagation private -- bash -c \
+    'mount -t tmpfs -o mode=0700,size=1m pinsim-hidden "$1" && shift && exec "$@"' _ "$plugins" \
+    env -u TMPDIR AUTOGRADER_ROOT="$root" PINSIM_BIN="$prefix/bin/pinsim" \
+    "$container_like" --no-landlock -- "$root/source/run_autograder" >/dev/null
+  check "$root/results/results.json" "$in_bwrap" "loaded plugin" fallback
+  echo "gradescope-pack fallback OK"
+  exit 0
+fi
+
 [ "$mode" = build ] || fail "unknown mode $mode"
+# What this build's grader gives the correct source submission, for the zip's to match.
+unpack "$tmp/autograder.zip"
+cp -r "$subs/correct_source/." "$root/submission/"
+AUTOGRADER_ROOT=$root PINSIM_BIN=$bin "$root/source/run_autograder" >/dev/null
+expected=$(score_of "$root/results/results.json")
 unpack "$tmp/autograder.zip"
 chmod 711 "$tmp"  # /autograder's parent, /, lets every uid through
 # As on Gradescope: no compiler cache, the build from scratch.
@@ -185,10 +231,9 @@ for p in bending damped_spring gravity linear_spring none; do
 done
 [ ! -e "$root/source/build/plugins/libpinsim_plugin_sdf.so" ] || fail "setup.sh built the sdf backend"
 
-spring=$(points_of linear_spring)
 cp -r "$subs/correct_source/." "$root/submission/"
 AUTOGRADER_ROOT=$root "$root/source/run_autograder" >/dev/null
-check "$root/results/results.json" "$spring" "loaded plugin"
+check "$root/results/results.json" "$expected" "loaded plugin"
 
 rm -rf "$root/submission"/* "$root/results"/*
 cp -r "$subs/does_not_compile/." "$root/submission/"
@@ -200,7 +245,7 @@ if [ "$(id -u)" -eq 0 ] && [ -n "$container_like" ]; then
   rm -rf "$root/submission"/* "$root/results"/*
   cp -r "$subs/correct_source/." "$root/submission/"
   AUTOGRADER_ROOT=$root "$container_like" --no-landlock -- "$root/source/run_autograder" >/dev/null
-  check "$root/results/results.json" "$spring" "loaded plugin" fallback
+  check "$root/results/results.json" "$expected" "loaded plugin" fallback
 else
   echo "not root: the fallback sandbox is not tried"
 fi
