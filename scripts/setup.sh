@@ -24,7 +24,7 @@ if [ "$mode" = test ]; then
   # The tests (Catch2, schema and HDF5 checks, browser and Slurm tests), the bench and stress
   # figures (gnuplot), the web build (Emscripten) and the asan and fuzz stages (clang).
   packages+=(catch2 python3-jsonschema hdf5-tools python3-h5py gnuplot-nox chromium xvfb
-             xauth firefox-esr emscripten slurm-wlm munge clang libclang-rt-14-dev)
+             xauth firefox-esr emscripten slurm-wlm munge clang libclang-rt-14-dev ccache)
 fi
 missing=()
 for p in "${packages[@]}"; do
@@ -44,6 +44,13 @@ if ((${#missing[@]})); then
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
+
+# A compiler cache, when ccache is installed (`setup.sh test` installs it; CI runs that):
+# build folders configured from here compile through it, with paths below this clone made
+# relative, so a second clone (CI's clean clone) reuses what an earlier build compiled.
+# ccache keys on the preprocessed source, the compiler and every flag: a hit is the object
+# the compiler would make. CCACHE_DISABLE=1 turns it off; scripts/ccache_env.sh.
+. scripts/ccache_env.sh
 
 jobs=$(nproc 2>/dev/null || echo 2)
 if [ "$mode" = run ]; then

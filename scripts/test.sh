@@ -20,6 +20,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/setup.sh test
+# The web and asan build folders compile through ccache too when it is installed.
+. scripts/ccache_env.sh
 jobs=$(nproc 2>/dev/null || echo 2)
 stages=${PINSIM_TEST_STAGES:-release web asan fuzz}
 has() { [[ " $stages " == *" $1 "* ]]; }
