@@ -141,7 +141,7 @@ std::string slurp(const fs::path& p) {
 int main(int argc, char** argv) {
   bool quick = false;
   int steps = 0;
-  fs::path out = "/tmp/pinsim_bench_output";
+  fs::path out;  // default: a folder of this run's own, so that two runs never share files
   for (int i = 1; i < argc; ++i) {
     const std::string a = argv[i];
     if (a == "--quick") {
@@ -156,6 +156,14 @@ int main(int argc, char** argv) {
     }
   }
   if (steps <= 0) steps = quick ? 20 : 300;
+  if (out.empty()) {
+    std::string templ = (fs::temp_directory_path() / "pinsim_bench_output.XXXXXX").string();
+    if (::mkdtemp(templ.data()) == nullptr) {
+      std::perror("pinsim_bench_output: mkdtemp");
+      return 2;
+    }
+    out = templ;
+  }
   const int side = quick ? 20 : 100;
   pinsim::PluginLoader loader(pinsim::plugin_search_dirs());
   struct Case {
