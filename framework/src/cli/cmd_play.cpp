@@ -358,8 +358,10 @@ int play_command(const PlayArgs& a) {
   if (!a.rerun.empty()) return rerun_recording(a);
 #if !PINSIM_WITH_SDL2
   throw InputError(
-      "pinsim play: this pinsim was built without a window (-DPINSIM_WITH_SDL2=OFF, as the "
-      "Gradescope autograder builds it); --rerun still works");
+      "pinsim play: this pinsim was built without a window (-DPINSIM_WITH_SDL2=OFF: "
+      "scripts/setup.sh run builds it so when libsdl2-dev is not installed, the Gradescope "
+      "autograder always); install libsdl2-dev and run scripts/setup.sh again (scripts/test.sh "
+      "does both); --rerun still works");
 #else
   // Plan: the scene, the game and its script, the static table, the window.
   const Scene scene = load_scene_or_default(a.scene, {});
