@@ -12,6 +12,7 @@
 #include "core/input_error.hpp"
 #include "core/instances.hpp"
 #include "core/integrator.hpp"
+#include "core/jacobian_entries.hpp"
 #include "gradients/checkpoints.hpp"
 
 namespace pinsim::grad {
@@ -209,6 +210,26 @@ class SimulationForces : public ForceModel {
     }
   }
 
+  /// With every differenced instance's Jacobians from its plugin: one central difference in
+  /// the parameter of w^T (K a + D c), from the instances' exact Jacobians (no nested
+  /// differences); else the default.
+  void param_jacobian_vjp(const State& s, const Eigen::Matrix2Xd& w, const Eigen::Matrix2Xd& a,
+                          const Eigen::Matrix2Xd& c, double eps, Eigen::VectorXd& gp) override {
+    for (const Entry& e : entries_) {
+      const ForceInstance& f = *sim_.forces()[e.force];
+      if (!f.provides_dfdx() || (f.velocity_dependent() && !f.provides_dfdv())) {
+        ForceModel::param_jacobian_vjp(s, w, a, c, eps, gp);
+        return;
+      }
+    }
+    for (const Entry& e : entries_) {
+      const ForceInstance& minus = e.minus ? *e.minus : *sim_.forces()[e.force];
+      const double yp = jacobian_product(*e.plus, s, w, a, c);
+      const double ym = jacobian_product(minus, s, w, a, c);
+      gp[e.slot] += (yp - ym) / e.denominator;
+    }
+  }
+
   void jacobians(const State& s, Eigen::SparseMatrix<double>& K,
                  Eigen::SparseMatrix<double>& D) override {
     cache(s);
@@ -278,6 +299,21 @@ class SimulationForces : public ForceModel {
       if (fp == fm) continue;  // no rest value taken from this particle
       entries_.push_back(std::move(e));
     }
+  }
+
+  /// w^T (K a + D c) with force f's own Jacobians at s.
+  static double jacobian_product(const ForceInstance& f, const State& s, const Eigen::Matrix2Xd& w,
+                                 const Eigen::Matrix2Xd& a, const Eigen::Matrix2Xd& c) {
+    JacobianEntries ex, ev;
+    const pinsim_triplet_sink sx = ex.sink(), sv = ev.sink();
+    f.add_jacobians(s.view(), &sx, f.provides_dfdv() ? &sv : nullptr);
+    std::vector<Eigen::Triplet<double>> tx, tv;
+    ex.append_triplets(tx);
+    ev.append_triplets(tv);
+    double y = 0.0;
+    for (const auto& t : tx) y += w.data()[t.row()] * t.value() * a.data()[t.col()];
+    for (const auto& t : tv) y += w.data()[t.row()] * t.value() * c.data()[t.col()];
+    return y;
   }
 
   void cache(const State& s) {
