@@ -51,6 +51,7 @@ int main(int argc, char** argv) {
   pinsim::cli::add_gradescope_pack_command(app);
 #ifdef PINSIM_WITH_GRADIENTS
   pinsim::cli::add_grad_command(app);
+  pinsim::cli::add_fit_command(app);
 #endif
 
   try {

@@ -102,3 +102,53 @@ TEST_CASE("grad cli: bad input is exit 2 naming it", "[gradients][cli]") {
   CHECK(box2d.code == 2);
   CHECK_THAT(box2d.output, Catch::Contains("backend 'box2d' cannot differentiate its step"));
 }
+
+// A ring blob whose springs start away from their rest lengths, so that it oscillates as it
+// flies: its edges' ks and kd leave their mark on every frame.
+TEST_CASE("fit cli: a blob's ks and kd recovered from its own recorded run",
+          "[gradients][cli][fit]") {
+  const auto dir = test::temp_dir("fit_blob");
+  test::write_file(dir / "blob.json", R"({
+    "time": {"dt": 0.001, "duration": 0.5},
+    "backend": {"name": "none"},
+    "bodies": [{"type": "ring_blob", "name": "blob", "center": [0.0, 1.0], "ring_radius": 0.3,
+                "count": 8, "total_mass": 0.8, "radius": 0.02, "velocity": [0.4, 0.3]}],
+    "forces": [
+      {"type": "gravity", "params": {"g": [0.0, -9.81]}},
+      {"type": "damped_spring", "params": {"ks": 300.0, "kd": 0.4, "rest_length": 0.25},
+       "elements": {"body": "blob", "set": "edges"}},
+      {"type": "damped_spring", "params": {"ks": 100.0, "kd": 0.2, "rest_length": 0.55},
+       "elements": {"body": "blob", "set": "cross"}}
+    ],
+    "output": {"every": 10}
+  })");
+  const std::string scene = (dir / "blob.json").string();
+  REQUIRE(test::pinsim_cli("run " + scene + " -q --out " + (dir / "rec").string()).code == 0);
+  const auto fit = test::pinsim_cli(
+      "fit " + scene + " --set 'forces[1].params.ks=200' 'forces[1].params.kd=0.8' --target " +
+      (dir / "rec").string() + " --wrt 'forces[1].params.ks' 'forces[1].params.kd' --out " +
+      (dir / "fit").string());
+  INFO(fit.output);
+  REQUIRE(fit.code == 0);
+  CHECK_THAT(fit.output, Catch::Contains("iteration 0 (1 runs): misfit") &&
+                             Catch::Contains("iteration 1 (") && Catch::Contains("fitted ("));
+  const nlohmann::json j = read_json(dir / "fit" / "fit.json");
+  CHECK(j["values"]["forces[1].params.ks"].get<double>() == Approx(300.0).epsilon(1e-6));
+  CHECK(j["values"]["forces[1].params.kd"].get<double>() == Approx(0.4).epsilon(1e-6));
+  CHECK(j["history"].size() == j["iterations"].get<std::size_t>() + 1);
+  // the fitted scene holds the values and runs
+  const nlohmann::json fitted = read_json(dir / "fit" / "scene.json");
+  CHECK(fitted["forces"][1]["params"]["ks"] == j["values"]["forces[1].params.ks"]);
+  CHECK(test::pinsim_cli("run " + (dir / "fit" / "scene.json").string() + " -q").code == 0);
+}
+
+TEST_CASE("fit cli: bad input is exit 2 naming it", "[gradients][cli][fit]") {
+  const auto no_run =
+      test::pinsim_cli("fit " + kProjectile + " --target /nonexistent --wrt 'particles[0].v'");
+  CHECK(no_run.code == 2);
+  CHECK_THAT(no_run.output, Catch::Contains("/nonexistent"));
+  const auto path = test::pinsim_cli("fit " + kProjectile +
+                                     " --target /nonexistent --wrt 'forces[0].params.mode'");
+  CHECK(path.code == 2);
+  CHECK_THAT(path.output, Catch::Contains("--wrt forces[0].params.mode: not differentiable"));
+}
