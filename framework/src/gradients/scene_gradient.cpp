@@ -12,7 +12,6 @@
 #include "core/input_error.hpp"
 #include "core/instances.hpp"
 #include "core/integrator.hpp"
-#include "core/jacobian_entries.hpp"
 #include "gradients/checkpoints.hpp"
 
 namespace pinsim::grad {
@@ -133,6 +132,29 @@ WrtValue force_value(const Scene& scene, const Simulation& sim, const std::strin
   return w;
 }
 
+/// A sink that adds J^T w into `out` as a force emits J's entries: for an entry (r, c, J_rc),
+/// out_c += J_rc w_r; for a 2x2 block d f_i / d x_j (column-major), out_j += block^T w_i.
+struct TransposedProduct {
+  const double* w;
+  double* out;
+  pinsim_triplet_sink sink() {
+    return {this,
+            [](void* p, uint32_t row, uint32_t col, double value) {
+              auto* t = static_cast<TransposedProduct*>(p);
+              t->out[col] += value * t->w[row];
+            },
+            [](void* p, const uint32_t* particles, const double* v, uint64_t count) {
+              auto* t = static_cast<TransposedProduct*>(p);
+              for (uint64_t k = 0; k < count; ++k, v += 4) {
+                const double* wi = t->w + 2 * static_cast<std::size_t>(particles[2 * k]);
+                double* oj = t->out + 2 * static_cast<std::size_t>(particles[2 * k + 1]);
+                oj[0] += v[0] * wi[0] + v[1] * wi[1];
+                oj[1] += v[2] * wi[0] + v[3] * wi[1];
+              }
+            }};
+  }
+};
+
 /// One component that a force depends on outside the state: a parameter of force `force`,
 /// or (force -1) an initial position, which rest lengths and angles come from.
 struct ParamSlot {
@@ -154,6 +176,9 @@ class SimulationForces : public ForceModel {
   SimulationForces(Simulation& sim, const Scene& scene, PluginLoader& loader,
                    const std::vector<WrtValue>& wrt, double rel_eps)
       : sim_(sim) {
+    for (const auto& f : sim.forces())
+      if (!f->provides_dfdx() || (f->velocity_dependent() && !f->provides_dfdv()))
+        all_exact_ = false;
     for (std::size_t w = 0; w < wrt.size(); ++w) {
       const WrtValue& v = wrt[w];
       for (std::size_t c = 0; c < v.value.size(); ++c) {
@@ -186,6 +211,15 @@ class SimulationForces : public ForceModel {
 
   void vjp(const State& s, const Eigen::Matrix2Xd& w, Eigen::Matrix2Xd& gx,
            Eigen::Matrix2Xd& gv) override {
+    if (all_exact_) {
+      // the plugins' entries straight into the products, no matrix assembled
+      const pinsim_state_view view = s.view();
+      TransposedProduct px{w.data(), gx.data()}, pv{w.data(), gv.data()};
+      const pinsim_triplet_sink sx = px.sink(), sv = pv.sink();
+      for (const auto& f : sim_.forces())
+        f->add_jacobians(view, &sx, f->provides_dfdv() ? &sv : nullptr);
+      return;
+    }
     cache(s);
     const Eigen::Map<const Eigen::VectorXd> wf(w.data(), w.size());
     Eigen::Map<Eigen::VectorXd>(gx.data(), gx.size()) += k_.transpose() * wf;
@@ -195,10 +229,11 @@ class SimulationForces : public ForceModel {
   void param_vjp(const State& s, const Eigen::Matrix2Xd& w, Eigen::VectorXd& gp) override {
     if (entries_.empty()) return;
     const pinsim_state_view view = s.view();
-    Eigen::Matrix2Xd fp(2, s.x.cols()), fm(2, s.x.cols());
+    Eigen::Matrix2Xd& fp = fp_;
+    Eigen::Matrix2Xd& fm = fm_;
     for (const Entry& e : entries_) {
-      fp.setZero();
-      fm.setZero();
+      fp.setZero(2, s.x.cols());
+      fm.setZero(2, s.x.cols());
       e.plus->add_force(view, fp.data());
       if (e.minus) {
         e.minus->add_force(view, fm.data());
@@ -304,15 +339,11 @@ class SimulationForces : public ForceModel {
   /// w^T (K a + D c) with force f's own Jacobians at s.
   static double jacobian_product(const ForceInstance& f, const State& s, const Eigen::Matrix2Xd& w,
                                  const Eigen::Matrix2Xd& a, const Eigen::Matrix2Xd& c) {
-    JacobianEntries ex, ev;
-    const pinsim_triplet_sink sx = ex.sink(), sv = ev.sink();
+    Eigen::Matrix2Xd kx = Eigen::Matrix2Xd::Zero(2, w.cols()), dv = kx;
+    TransposedProduct px{w.data(), kx.data()}, pv{w.data(), dv.data()};
+    const pinsim_triplet_sink sx = px.sink(), sv = pv.sink();
     f.add_jacobians(s.view(), &sx, f.provides_dfdv() ? &sv : nullptr);
-    std::vector<Eigen::Triplet<double>> tx, tv;
-    ex.append_triplets(tx);
-    ev.append_triplets(tv);
-    double y = 0.0;
-    for (const auto& t : tx) y += w.data()[t.row()] * t.value() * a.data()[t.col()];
-    for (const auto& t : tv) y += w.data()[t.row()] * t.value() * c.data()[t.col()];
+    const double y = kx.cwiseProduct(a).sum() + dv.cwiseProduct(c).sum();
     return y;
   }
 
@@ -331,6 +362,9 @@ class SimulationForces : public ForceModel {
   };
 
   Simulation& sim_;
+  Eigen::Matrix2Xd fp_, fm_;  ///< param_vjp's forces, kept between calls
+  /// Every force gives its Jacobians (df/dv too where it may depend on v).
+  bool all_exact_ = true;
   std::vector<Entry> entries_;
   std::vector<SlotIndex> slot_index_;
   Eigen::Index slots_ = 0;
@@ -344,9 +378,8 @@ class SimulationForces : public ForceModel {
 /// without contacts: the state entering the step and the one leaving it give the drift's
 /// velocity (symplectic and implicit Euler: the velocity leaving it; velocity Verlet: the
 /// half kick v0 + h/2 M^-1 f(x0, v0), and its closing predictor).
-void fill_tape(Scheme scheme, ForceModel& forces, const State& start, const State& end, double h,
-               StepTape& tape) {
-  tape.start = start;
+void fill_tape(Scheme scheme, ForceModel& forces, const State& end, double h, StepTape& tape) {
+  const State& start = tape.start;
   DriftTape& d = tape.drift;
   d.t0 = start.t;
   d.h = h;
@@ -506,11 +539,11 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
         term_states.clear();
       },
       [&](StepTape* tape) {
-        const State start = sim.state();
+        tape->start = sim.state();  // into the tape's own storage, reused segment after segment
         replay->step(sim, h);
         ++cur;
         sim.state().t = static_cast<double>(cur) * h;
-        fill_tape(scheme, model, start, sim.state(), h, *tape);
+        fill_tape(scheme, model, sim.state(), h, *tape);
         if (loss->has_term(cur)) term_states[cur] = sim.state();
       },
       [&](uint64_t n, const StepTape& tape) {
