@@ -152,3 +152,13 @@ TEST_CASE("fit cli: bad input is exit 2 naming it", "[gradients][cli][fit]") {
   CHECK(path.code == 2);
   CHECK_THAT(path.output, Catch::Contains("--wrt forces[0].params.mode: not differentiable"));
 }
+
+TEST_CASE("grad cli: pinsim plugins shows which backends differentiate their step",
+          "[gradients][cli]") {
+  const auto none = test::pinsim_cli("plugins none");
+  REQUIRE(none.code == 0);
+  CHECK_THAT(none.output, Catch::Contains("differentiable"));
+  const auto sdf = test::pinsim_cli("plugins sdf");
+  REQUIRE(sdf.code == 0);
+  CHECK_THAT(sdf.output, !Catch::Contains("differentiable"));
+}
