@@ -9,6 +9,7 @@ class NoneBackend {
     PluginInfo i;
     i.name = "none";
     i.doc = "Pure drift x(t+dt) = x(t) + dt v for scenes without obstacles; no collision work.";
+    i.capabilities = PINSIM_CAP_DIFFERENTIABLE;  // the drift is x += dt v, nothing else
     return i;
   }
 

@@ -73,7 +73,12 @@ enum {
   PINSIM_CAP_DISTANCE = 1u << 8,         /**< backend: distance() is provided */
   PINSIM_CAP_PARTICLE_CONTACT = 1u << 9, /**< backend: can resolve particle-particle contacts */
   PINSIM_CAP_INPUTS = 1u << 10,          /**< backend: input() is provided */
-  PINSIM_CAP_OUTLINES = 1u << 11         /**< backend: outline() is provided */
+  PINSIM_CAP_OUTLINES = 1u << 11,        /**< backend: outline() is provided */
+  /** backend: its advance() is differentiable as the host's adjoint of a run assumes: a
+   *  drift without contacts is x += dt v for particles with inv_mass > 0 (pinned ones stay),
+   *  and the backend reports no contact it did not make. `pinsim grad` refuses a backend
+   *  without it; a host that does not know the bit ignores it. */
+  PINSIM_CAP_DIFFERENTIABLE = 1u << 12
 };
 
 /** Declared parameter types. */

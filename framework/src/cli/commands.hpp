@@ -19,5 +19,7 @@ void add_share_command(CLI::App& app);
 void add_play_command(CLI::App& app);
 void add_grade_command(CLI::App& app);
 void add_gradescope_pack_command(CLI::App& app);
+void add_grad_command(CLI::App& app);
+void add_fit_command(CLI::App& app);
 
 }  // namespace pinsim::cli

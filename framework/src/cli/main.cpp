@@ -49,6 +49,10 @@ int main(int argc, char** argv) {
   pinsim::cli::add_play_command(app);
   pinsim::cli::add_grade_command(app);
   pinsim::cli::add_gradescope_pack_command(app);
+#ifdef PINSIM_WITH_GRADIENTS
+  pinsim::cli::add_grad_command(app);
+  pinsim::cli::add_fit_command(app);
+#endif
 
   try {
     app.parse(argc, argv);

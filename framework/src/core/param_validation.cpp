@@ -149,7 +149,8 @@ std::string format_param_table(const pinsim_plugin& plugin) {
       {PINSIM_CAP_CONCURRENT, "concurrent"},
       {PINSIM_CAP_DISTANCE, "distance"},
       {PINSIM_CAP_PARTICLE_CONTACT, "particle-contact"},
-      {PINSIM_CAP_INPUTS, "inputs"}};
+      {PINSIM_CAP_INPUTS, "inputs"},
+      {PINSIM_CAP_DIFFERENTIABLE, "differentiable"}};
   bool any = false;
   for (const auto& [bit, label] : caps)
     if (plugin.capabilities & bit) {

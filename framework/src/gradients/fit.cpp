@@ -107,6 +107,9 @@ FitResult fit_lbfgsb(const std::vector<FitVariable>& vars, const FitObjective& l
   param.max_iterations = options.max_iterations;
   param.epsilon = options.gradient_tolerance * g0.norm();
   param.epsilon_rel = 0.0;
+  // LBFGSBParam's defaults also stop when the loss changes by less than delta = 1e-10 in
+  // absolute terms (past = 1), which ends a misfit near zero long before its minimum.
+  param.past = 0;
   param.max_linesearch = 40;
   Vec z = z0;
   double fz = f0;

@@ -23,6 +23,24 @@ class ForceModel {
                          Eigen::SparseMatrix<double>& D) = 0;
   /// Whether some force may depend on the velocities (velocity Verlet's predictor runs then).
   virtual bool velocity_dependent() const = 0;
+  /// gp += d/dtheta [w^T (K a + D c)] at s: the Jacobian products' derivatives in the
+  /// parameters along the directions a (of x) and c (of v). By default the directional
+  /// derivative d/deps [(df/dtheta)(x + eps a, v + eps c)^T w] by central differences of
+  /// param_vjp with step eps (truncation O(eps^2); a param_vjp that is itself a difference
+  /// quotient has its rounding amplified by 1/eps: a model that can, overrides this).
+  virtual void param_jacobian_vjp(const State& s, const Eigen::Matrix2Xd& w,
+                                  const Eigen::Matrix2Xd& a, const Eigen::Matrix2Xd& c, double eps,
+                                  Eigen::VectorXd& gp) {
+    State sp = s, sm = s;
+    sp.x += eps * a;
+    sp.v += eps * c;
+    sm.x -= eps * a;
+    sm.v -= eps * c;
+    Eigen::VectorXd pp = Eigen::VectorXd::Zero(gp.size()), pm = pp;
+    param_vjp(sp, w, pp);
+    param_vjp(sm, w, pm);
+    gp += (pp - pm) / (2.0 * eps);
+  }
 };
 
 }  // namespace pinsim::grad

@@ -136,12 +136,7 @@ void adjoint_implicit_euler(ForceModel& forces, const StepTape& tape, double h, 
   forces.vjp(sm, mu, gxm, gvm);
   a.gx += (gxp - gxm) / (2.0 * eps);
   a.gv += (gvp - gvm) / (2.0 * eps);
-  if (a.gp.size() > 0) {
-    Eigen::VectorXd pp = Eigen::VectorXd::Zero(a.gp.size()), pm = pp;
-    forces.param_vjp(sp, mu, pp);
-    forces.param_vjp(sm, mu, pm);
-    a.gp += (pp - pm) / (2.0 * eps);
-  }
+  if (a.gp.size() > 0) forces.param_jacobian_vjp(s0, mu, dir_x, dir_v, eps, a.gp);
 }
 
 }  // namespace pinsim::grad

@@ -1,0 +1,94 @@
+// pinsim grad SCENE --loss L --wrt PATH... [--out DIR] [--set PATH=VALUE]...
+//            [--integrator NAME] [--threads N] [--segment S]
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+#include "cli_common.hpp"
+#include "cli_gradients.hpp"
+#include "commands.hpp"
+#include "core/format.hpp"
+#include "core/input_error.hpp"
+#include "core/output_file.hpp"
+#include "core/plugin_loader.hpp"
+
+namespace pinsim::cli {
+namespace {
+
+struct GradArgs {
+  std::string scene;
+  std::string loss;
+  std::vector<std::string> wrt;
+  std::string out;
+  std::vector<std::string> set;
+  std::string integrator;
+  unsigned threads = 0;
+  uint64_t segment = 0;
+};
+
+int grad_command(const GradArgs& a) {
+  Scene scene = load_scene_or_default(a.scene, a.set);
+  PluginLoader loader(plugin_search_dirs(scene.plugin_path));
+  grad::GradientOptions opt;
+  opt.run.integrator = a.integrator;
+  opt.run.threads = a.threads;
+  opt.segment = a.segment;
+  if (!a.out.empty()) {
+    std::error_code ec;
+    std::filesystem::create_directories(a.out, ec);
+    if (ec) throw OutputError(output_error_text(a.out, "create", ec.value()));
+  }
+  const grad::GradientReport r =
+      grad::scene_gradient(scene, loader, a.wrt, loss_factory(a.loss), opt);
+  const nlohmann::json j = r.to_json();
+  spdlog::info("{}: loss {} = {} ({} steps; forward {:.3f} s, backward {:.3f} s)", scene.label,
+               r.loss_text, num(r.loss, 17), r.steps, r.forward_s, r.backward_s);
+  for (const grad::PathGradient& p : r.paths) {
+    std::string g;
+    for (Eigen::Index c = 0; c < p.gradient.size(); ++c)
+      g.append(c ? ", " : "").append(num(p.gradient[c], 17));
+    std::cout << p.wrt.path << ": " << g << "\n";
+  }
+  for (const grad::Finding& f : r.findings)
+    spdlog::warn("{}: not differentiable at t = {} (particle {})", scene.label, num(f.t),
+                 f.particle);
+  if (!a.out.empty()) {
+    write_file_atomically(std::filesystem::path(a.out) / "gradient.json", j.dump(2) + "\n");
+    spdlog::info("gradient written to {}",
+                 (std::filesystem::path(a.out) / "gradient.json").string());
+  }
+  return 0;
+}
+
+}  // namespace
+
+void add_grad_command(CLI::App& app) {
+  auto a = std::make_shared<GradArgs>();
+  CLI::App* c = app.add_subcommand(
+      "grad", "Gradient of a loss of a run in scene values, by the adjoint of the run");
+  c->add_option("scene", a->scene, "Scene file (JSON)")->required();
+  c->add_option("--loss", a->loss,
+                "final:I:x|y|vx|vy (a final coordinate of particle I), target:I:X,Y[@T] "
+                "(squared distance of particle I to (X, Y) at time T, default the end) or "
+                "misfit:RUN_FOLDER (sum over its frames of squared position differences)")
+      ->required();
+  c->add_option("--wrt", a->wrt,
+                "Values to differentiate in, as --set paths: particles[I].x, particles[I].v, "
+                "forces[K].params.NAME")
+      ->required()
+      ->take_all();
+  c->add_option("--out,-o", a->out, "Folder for gradient.json");
+  c->add_option("--set", a->set, "Override a scene value, e.g. --set time.dt=0.0005")->take_all();
+  c->add_option("--integrator", a->integrator,
+                "Use this integrator instead of the scene's (symplectic_euler, "
+                "velocity_verlet, implicit_euler)");
+  c->add_option("--threads", a->threads, "Threads, as for pinsim run")
+      ->check(CLI::Range(1u, kMaxThreads));
+  c->add_option("--segment", a->segment,
+                "Steps between checkpoints (default: the square root of the steps)");
+  c->callback([a] { throw CLI::RuntimeError(grad_command(*a)); });
+}
+
+}  // namespace pinsim::cli

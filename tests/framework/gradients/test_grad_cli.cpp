@@ -1,0 +1,164 @@
+// `pinsim grad` and `pinsim fit` through the command line: gradient.json, the same run as
+// `pinsim run`, bad input as exit 2 naming it, and fits recovering the values of a recorded
+// run.
+#include <catch2/catch.hpp>
+#include <cmath>
+#include <nlohmann/json.hpp>
+
+#include "test_support.hpp"
+
+using namespace pinsim;
+
+namespace {
+
+nlohmann::json read_json(const std::filesystem::path& p) {
+  return nlohmann::json::parse(test::read_file(p));
+}
+
+const std::string kProjectile = PINSIM_SOURCE_DIR "/configs/projectile.json";
+
+}  // namespace
+
+TEST_CASE("grad cli: gradient.json, and the run is the one pinsim run makes", "[gradients][cli]") {
+  const auto dir = test::temp_dir("grad_cli");
+  const std::string scene = PINSIM_SOURCE_DIR "/configs/two_mass_oscillator.json";
+  const std::string set = " --set time.duration=0.3 'particles[1].v=[0.1,0.2]'";
+  const auto g = test::pinsim_cli("grad " + scene + set +
+                                  " --loss final:1:x --wrt 'particles[1].v' "
+                                  "'forces[0].params.k' --out " +
+                                  (dir / "g").string());
+  INFO(g.output);
+  REQUIRE(g.code == 0);
+  const auto r = test::pinsim_cli("run " + scene + set + " --out " + (dir / "r").string());
+  REQUIRE(r.code == 0);
+  const nlohmann::json j = read_json(dir / "g" / "gradient.json");
+  const nlohmann::json s = read_json(dir / "r" / "summary.json");
+  CHECK(j["state_hash"] == s["state_hash"]);
+  CHECK(j["steps"] == 600);
+  CHECK(j["paths"]["particles[1].v"]["gradient"].size() == 2);
+  CHECK(j["paths"]["particles[1].v"]["value"] == nlohmann::json::array({0.1, 0.2}));
+  CHECK(j["paths"]["forces[0].params.k"]["gradient"].size() == 1);
+  CHECK(j["paths"]["forces[0].params.k"]["parameter derivative"] == "finite differences");
+  CHECK(j["parameter derivative"]["method"] == "finite differences");
+  CHECK(j["differentiable"] == true);
+  CHECK(j["cost"]["forward_s"].get<double>() > 0.0);
+  CHECK(j["cost"]["backward_s"].get<double>() > 0.0);
+  CHECK(j["cost"]["forward_force_evaluations"] == 1200);  // velocity Verlet: 2 a step
+  CHECK(j["replay_deviation"] == 0.0);
+  // the loss is the final x of the run pinsim run wrote: its last trajectory row
+  const std::string traj = test::read_file(dir / "r" / "trajectory.csv");
+  const auto last = traj.rfind('\n', traj.size() - 2);
+  const std::string row = traj.substr(last + 1);
+  CHECK(row.rfind("0.3,1,", 0) == 0);
+  const double x = std::stod(row.substr(6));
+  CHECK(j["loss"].get<double>() == x);
+}
+
+TEST_CASE("grad cli: the misfit to a recorded run folder", "[gradients][cli]") {
+  const auto dir = test::temp_dir("grad_misfit");
+  const std::string scene = PINSIM_SOURCE_DIR "/configs/two_mass_oscillator.json";
+  REQUIRE(
+      test::pinsim_cli("run " + scene + " --set time.duration=0.2 --out " + (dir / "rec").string())
+          .code == 0);
+  // the same scene: misfit 0 and gradient 0 at the recorded values
+  const auto same = test::pinsim_cli(
+      "grad " + scene + " --set time.duration=0.2 --loss misfit:" + (dir / "rec").string() +
+      " --wrt 'forces[0].params.k' --out " + (dir / "a").string());
+  INFO(same.output);
+  REQUIRE(same.code == 0);
+  const nlohmann::json a = read_json(dir / "a" / "gradient.json");
+  CHECK(a["loss"] == 0.0);
+  CHECK(a["paths"]["forces[0].params.k"]["gradient"][0] == 0.0);
+  // a stiffer spring: a positive misfit that grows with k
+  const auto stiff = test::pinsim_cli(
+      "grad " + scene + " --set time.duration=0.2 'forces[0].params.k=55' --loss misfit:" +
+      (dir / "rec").string() + " --wrt 'forces[0].params.k' --out " + (dir / "b").string());
+  REQUIRE(stiff.code == 0);
+  const nlohmann::json b = read_json(dir / "b" / "gradient.json");
+  CHECK(b["loss"].get<double>() > 0.0);
+  CHECK(b["paths"]["forces[0].params.k"]["gradient"][0].get<double>() > 0.0);
+}
+
+TEST_CASE("grad cli: bad input is exit 2 naming it", "[gradients][cli]") {
+  const auto unknown =
+      test::pinsim_cli("grad " + kProjectile + " --loss final:0:x --wrt 'particles[4].v'");
+  CHECK(unknown.code == 2);
+  CHECK_THAT(unknown.output, Catch::Contains("--wrt particles[4].v"));
+  const auto not_diff =
+      test::pinsim_cli("grad " + kProjectile + " --loss final:0:x --wrt time.duration");
+  CHECK(not_diff.code == 2);
+  CHECK_THAT(not_diff.output, Catch::Contains("--wrt time.duration: not differentiable"));
+  const auto loss =
+      test::pinsim_cli("grad " + kProjectile + " --loss speed:0 --wrt 'particles[0].v'");
+  CHECK(loss.code == 2);
+  CHECK_THAT(loss.output, Catch::Contains("--loss speed:0") && Catch::Contains("unknown kind"));
+  const auto misfit = test::pinsim_cli("grad " + kProjectile +
+                                       " --loss misfit:/nonexistent --wrt 'particles[0].v'");
+  CHECK(misfit.code == 2);
+  CHECK_THAT(misfit.output, Catch::Contains("/nonexistent"));
+  const auto box2d = test::pinsim_cli(
+      "grad " + kProjectile +
+      " --set 'backend={\"name\":\"box2d\"}' --loss final:0:x --wrt 'particles[0].v'");
+  CHECK(box2d.code == 2);
+  CHECK_THAT(box2d.output, Catch::Contains("backend 'box2d' cannot differentiate its step"));
+}
+
+// A ring blob whose springs start away from their rest lengths, so that it oscillates as it
+// flies: its edges' ks and kd leave their mark on every frame.
+TEST_CASE("fit cli: a blob's ks and kd recovered from its own recorded run",
+          "[gradients][cli][fit]") {
+  const auto dir = test::temp_dir("fit_blob");
+  test::write_file(dir / "blob.json", R"({
+    "time": {"dt": 0.001, "duration": 0.5},
+    "backend": {"name": "none"},
+    "bodies": [{"type": "ring_blob", "name": "blob", "center": [0.0, 1.0], "ring_radius": 0.3,
+                "count": 8, "total_mass": 0.8, "radius": 0.02, "velocity": [0.4, 0.3]}],
+    "forces": [
+      {"type": "gravity", "params": {"g": [0.0, -9.81]}},
+      {"type": "damped_spring", "params": {"ks": 300.0, "kd": 0.4, "rest_length": 0.25},
+       "elements": {"body": "blob", "set": "edges"}},
+      {"type": "damped_spring", "params": {"ks": 100.0, "kd": 0.2, "rest_length": 0.55},
+       "elements": {"body": "blob", "set": "cross"}}
+    ],
+    "output": {"every": 10}
+  })");
+  const std::string scene = (dir / "blob.json").string();
+  REQUIRE(test::pinsim_cli("run " + scene + " -q --out " + (dir / "rec").string()).code == 0);
+  const auto fit = test::pinsim_cli(
+      "fit " + scene + " --set 'forces[1].params.ks=200' 'forces[1].params.kd=0.8' --target " +
+      (dir / "rec").string() + " --wrt 'forces[1].params.ks' 'forces[1].params.kd' --out " +
+      (dir / "fit").string());
+  INFO(fit.output);
+  REQUIRE(fit.code == 0);
+  CHECK_THAT(fit.output, Catch::Contains("iteration 0 (1 runs): misfit") &&
+                             Catch::Contains("iteration 1 (") && Catch::Contains("fitted ("));
+  const nlohmann::json j = read_json(dir / "fit" / "fit.json");
+  CHECK(j["values"]["forces[1].params.ks"].get<double>() == Approx(300.0).epsilon(1e-6));
+  CHECK(j["values"]["forces[1].params.kd"].get<double>() == Approx(0.4).epsilon(1e-6));
+  CHECK(j["history"].size() == j["iterations"].get<std::size_t>() + 1);
+  // the fitted scene holds the values and runs
+  const nlohmann::json fitted = read_json(dir / "fit" / "scene.json");
+  CHECK(fitted["forces"][1]["params"]["ks"] == j["values"]["forces[1].params.ks"]);
+  CHECK(test::pinsim_cli("run " + (dir / "fit" / "scene.json").string() + " -q").code == 0);
+}
+
+TEST_CASE("fit cli: bad input is exit 2 naming it", "[gradients][cli][fit]") {
+  const auto no_run =
+      test::pinsim_cli("fit " + kProjectile + " --target /nonexistent --wrt 'particles[0].v'");
+  CHECK(no_run.code == 2);
+  CHECK_THAT(no_run.output, Catch::Contains("/nonexistent"));
+  const auto path = test::pinsim_cli("fit " + kProjectile +
+                                     " --target /nonexistent --wrt 'forces[0].params.mode'");
+  CHECK(path.code == 2);
+  CHECK_THAT(path.output, Catch::Contains("--wrt forces[0].params.mode: not differentiable"));
+}
+
+TEST_CASE("grad cli: pinsim plugins shows which backends differentiate their step",
+          "[gradients][cli]") {
+  const auto none = test::pinsim_cli("plugins none");
+  REQUIRE(none.code == 0);
+  CHECK_THAT(none.output, Catch::Contains("differentiable"));
+  const auto sdf = test::pinsim_cli("plugins sdf");
+  REQUIRE(sdf.code == 0);
+  CHECK_THAT(sdf.output, !Catch::Contains("differentiable"));
+}
