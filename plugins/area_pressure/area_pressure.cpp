@@ -76,6 +76,31 @@ AreaPressure::AreaPressure(const CreateContext& ctx)
   for (std::size_t e = 0; e < rings(); ++e) {
     const double a0 = area(ctx.initial, e);
     rest_[e] = initial ? a0 : (a0 < 0.0 ? -a_abs : a_abs);
+    packed_.push_back(static_cast<uint32_t>(size(e)));
+    for (std::size_t k = 0; k < size(e); ++k) packed_.push_back(at(e, k));
+  }
+  ks_each_.assign(rings(), k_);
+  kd_each_.assign(rings(), kd_);
+}
+
+// C = A - A0 by the shoelace sum, dC/dp_i = g_i = 1/2 R (p_{i+1} - p_{i-1}) (see gradient()).
+void AreaPressure::constraints(const double* x, const uint64_t* which, std::size_t n, double* c,
+                               double* dc) const {
+  for (std::size_t q = 0; q < n; ++q) {
+    if (which[q] >= rings())
+      throw Error("constraints: element " + std::to_string(which[q]) + " of " +
+                  std::to_string(rings()));
+    const auto e = static_cast<std::size_t>(which[q]);
+    const std::size_t m = size(e);
+    double a = 0.0;
+    for (std::size_t i = 0; i < m; ++i) {
+      const uint32_t p = at(e, i), nx = at(e, (i + 1) % m), pv = at(e, (i + m - 1) % m);
+      a += x[2 * p] * x[2 * nx + 1] - x[2 * nx] * x[2 * p + 1];
+      dc[2 * i] = 0.5 * (x[2 * nx + 1] - x[2 * pv + 1]);
+      dc[2 * i + 1] = 0.5 * (x[2 * pv] - x[2 * nx]);
+    }
+    c[q] = 0.5 * a - rest_[e];
+    dc += 2 * m;
   }
 }
 

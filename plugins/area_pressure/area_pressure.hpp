@@ -22,6 +22,15 @@ class AreaPressure {
   /// df_i/dv_j = -kd g_i g_jᵀ.
   void add_dfdv(const StateView& s, Triplets& J) const;
 
+  /// The rings as constraints C = A - A0, dC/dp_i = dA/dp_i, ks = k, kd = kd: E = sum k/2 C^2
+  /// (pinsim/abi.h, pinsim_constraint_set; each ring listed as its length then its indices).
+  ConstraintSet constraint_set() const {
+    return {rings(), PINSIM_ARITY_VARIABLE, packed_.data(), ks_each_.data(), kd_each_.data()};
+  }
+  /// C and dC/dp of the rings listed in `which`, at positions x. Only reads.
+  void constraints(const double* x, const uint64_t* which, std::size_t n, double* c,
+                   double* dc) const;
+
   /// Signed rest area A0 of ring e, scene units^2.
   double rest_area(std::size_t e) const { return rest_[e]; }
   /// Signed shoelace area of ring e at positions x (> 0 counter-clockwise).
@@ -35,9 +44,11 @@ class AreaPressure {
   std::size_t size(std::size_t e) const { return start_[e + 1] - start_[e]; }
 
   double k_, kd_;
-  std::vector<uint32_t> idx_;       ///< the rings' particles, one ring after another
-  std::vector<std::size_t> start_;  ///< ring e is idx_[start_[e] .. start_[e+1])
-  std::vector<double> rest_;        ///< A0 per ring
+  std::vector<uint32_t> idx_;              ///< the rings' particles, one ring after another
+  std::vector<std::size_t> start_;         ///< ring e is idx_[start_[e] .. start_[e+1])
+  std::vector<double> rest_;               ///< A0 per ring
+  std::vector<uint32_t> packed_;           ///< per ring its length then its particles
+  std::vector<double> ks_each_, kd_each_;  ///< k and kd per ring, for constraint_set()
 };
 
 }  // namespace pinsim::plugins

@@ -46,6 +46,9 @@ Bending::Bending(const CreateContext& ctx) : k_(ctx.params.real("k")) {
       ke_[e] = l > kMinLength ? k_ / l : 0.0;
     }
   }
+  ks_each_.resize(ctx.elements.count);
+  for (std::size_t e = 0; e < ks_each_.size(); ++e) ks_each_[e] = k_of(e);
+  kd_each_.assign(ctx.elements.count, 0.0);
   const std::string shape = ctx.params.string("shape");
   if (shape == "flat") return;
   flat_ = false;
@@ -134,6 +137,49 @@ double Bending::energy(const StateView& s) const {
     sum += k_of(e) * (c * a.dot(b) + sn * (a.x() * b.y() - a.y() * b.x())) / (la * lb);
   }
   return -0.5 * sum;
+}
+
+// The constraint C = √2 sin(φ/2), φ = θ - θ0 = atan2(â × m, â·m) with m = M b̂ (the angle
+// from â to b̂ less θ0). With a⊥ = (-a_y, a_x), the angle of a has gradient a⊥/|a|², so
+//   dφ/da = -a⊥/|a|²,  dφ/db = b⊥/|b|²,  dC/dφ = cos(φ/2)/√2,
+// and with a = p1 - p0, b = p2 - p1: dC/dp0 = -dC/da, dC/dp1 = dC/da - dC/db, dC/dp2 = dC/db.
+// A degenerate triple (an edge shorter than kMinLength) has C = 0 and dC/dp = 0, as it has no
+// force. C is discontinuous at φ = ±π (C² is not): the strand folded back on itself.
+void Bending::constraints(const double* x, const uint64_t* which, std::size_t n, double* c,
+                          double* dc) const {
+  const double r2 = std::sqrt(2.0);
+  for (std::size_t q = 0; q < n; ++q, dc += 6) {
+    if (which[q] >= idx_.size() / 3)
+      throw Error("constraints: element " + std::to_string(which[q]) + " of " +
+                  std::to_string(idx_.size() / 3));
+    const auto e = static_cast<std::size_t>(which[q]);
+    const uint32_t i0 = idx_[3 * e], i1 = idx_[3 * e + 1], i2 = idx_[3 * e + 2];
+    const double ax = x[2 * i1] - x[2 * i0], ay = x[2 * i1 + 1] - x[2 * i0 + 1];
+    const double bx = x[2 * i2] - x[2 * i1], by = x[2 * i2 + 1] - x[2 * i1 + 1];
+    const double a2 = ax * ax + ay * ay, b2 = bx * bx + by * by;
+    const double la = std::sqrt(a2), lb = std::sqrt(b2);
+    c[q] = 0.0;
+    for (int k = 0; k < 6; ++k) dc[k] = 0.0;
+    if (!(la > kMinLength && lb > kMinLength)) continue;
+    double mx = bx / lb, my = by / lb;  // m = M b̂
+    if (!flat_) {
+      const double cc = c0_[e], sn = s0_[e], ux = mx, uy = my;
+      mx = cc * ux + sn * uy;
+      my = -sn * ux + cc * uy;
+    }
+    const double ahx = ax / la, ahy = ay / la;
+    const double phi = std::atan2(ahx * my - ahy * mx, ahx * mx + ahy * my);
+    c[q] = r2 * std::sin(0.5 * phi);
+    const double g = std::cos(0.5 * phi) / r2;           // dC/dφ
+    const double dax = g * ay / a2, day = -g * ax / a2;  // dC/da = -g a⊥/|a|²
+    const double dbx = -g * by / b2, dby = g * bx / b2;  // dC/db = g b⊥/|b|²
+    dc[0] = -dax;
+    dc[1] = -day;
+    dc[2] = dax - dbx;
+    dc[3] = day - dby;
+    dc[4] = dbx;
+    dc[5] = dby;
+  }
 }
 
 // Second derivatives of s = âᵀ M b̂ in the edge vectors (Π_u = I - ûûᵀ, m = M b̂, n = Mᵀ â),

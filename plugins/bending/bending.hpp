@@ -23,6 +23,17 @@ class Bending {
   /// No velocity dependence: df/dv = 0.
   void add_dfdv(const StateView&, Triplets&) const {}
 
+  /// The triples as constraints with E = sum ks/2 C^2 + const (pinsim/abi.h,
+  /// pinsim_constraint_set): C = √2 sin(φ/2), φ = θ - θ0, since
+  /// -k/2 cos φ = k/2 (2 sin²(φ/2)) - k/2; ks = k (per triple when length-scaled), kd = 0.
+  ConstraintSet constraint_set() const {
+    return {idx_.size() / 3, 3, idx_.data(), ks_each_.data(), kd_each_.data()};
+  }
+  /// C and dC/dp of the triples listed in `which`, at positions x (see bending.cpp). Only
+  /// reads.
+  void constraints(const double* x, const uint64_t* which, std::size_t n, double* c,
+                   double* dc) const;
+
   /// Rest angle θ0 of element e, radians (0 for the flat shape).
   double rest_angle(std::size_t e) const;
 
@@ -33,11 +44,12 @@ class Bending {
   double k_of(std::size_t e) const { return ke_.empty() ? k_ : ke_[e]; }
 
   double k_;
-  bool flat_ = true;           ///< every θ0 is 0: the seed's formula, no M
-  std::vector<uint32_t> idx_;  ///< 3 per element
-  std::vector<double> c0_;     ///< cos θ0 per element (empty when flat)
-  std::vector<double> s0_;     ///< sin θ0 per element (empty when flat)
-  std::vector<double> ke_;     ///< per-element stiffness when length-scaled, else empty
+  bool flat_ = true;                       ///< every θ0 is 0: the seed's formula, no M
+  std::vector<uint32_t> idx_;              ///< 3 per element
+  std::vector<double> c0_;                 ///< cos θ0 per element (empty when flat)
+  std::vector<double> s0_;                 ///< sin θ0 per element (empty when flat)
+  std::vector<double> ke_;                 ///< per-element stiffness when length-scaled, else empty
+  std::vector<double> ks_each_, kd_each_;  ///< stiffness and 0 per element, for constraint_set()
 };
 
 }  // namespace pinsim::plugins

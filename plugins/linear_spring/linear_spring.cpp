@@ -37,6 +37,28 @@ LinearSpring::LinearSpring(const CreateContext& ctx) : k_(ctx.params.real("k")) 
   for (std::size_t e = 0; e < rest_.size(); ++e)
     rest_[e] =
         l >= 0.0 ? l : (ctx.initial.x.col(idx_[2 * e]) - ctx.initial.x.col(idx_[2 * e + 1])).norm();
+  ks_each_.assign(rest_.size(), k_);
+  kd_each_.assign(rest_.size(), 0.0);
+}
+
+// C = R - L with R = |p_k - p_l|; for L = 0, C = R and ks/2 C^2 = k/2 |p_k - p_l|^2.
+void LinearSpring::constraints(const double* x, const uint64_t* which, std::size_t n, double* c,
+                               double* dc) const {
+  for (std::size_t q = 0; q < n; ++q, dc += 4) {
+    if (which[q] >= rest_.size())
+      throw Error("constraints: element " + std::to_string(which[q]) + " of " +
+                  std::to_string(rest_.size()));
+    const auto e = static_cast<std::size_t>(which[q]);
+    const uint32_t a = idx_[2 * e], b = idx_[2 * e + 1];
+    const double rx = x[2 * a] - x[2 * b], ry = x[2 * a + 1] - x[2 * b + 1];
+    const double r = std::sqrt(rx * rx + ry * ry);
+    const double inv = r > kMinLength ? 1.0 / r : 0.0;
+    c[q] = r - rest_[e];
+    dc[0] = rx * inv;
+    dc[1] = ry * inv;
+    dc[2] = -dc[0];
+    dc[3] = -dc[1];
+  }
 }
 
 void LinearSpring::add_force(const StateView& s, ForceOut& f) const {

@@ -22,6 +22,15 @@ class LinearSpring {
   /// No velocity dependence: df/dv = 0.
   void add_dfdv(const StateView&, Triplets&) const {}
 
+  /// The springs as constraints C = R - L, dC/dp_k = R̂ = -dC/dp_l (R̂ = 0 at R = 0), with
+  /// ks = k, kd = 0: E = sum k/2 C^2 (pinsim/abi.h, pinsim_constraint_set).
+  ConstraintSet constraint_set() const {
+    return {rest_.size(), 2, idx_.data(), ks_each_.data(), kd_each_.data()};
+  }
+  /// C and dC/dp of the springs listed in `which`, at positions x. Only reads.
+  void constraints(const double* x, const uint64_t* which, std::size_t n, double* c,
+                   double* dc) const;
+
   double rest_length(std::size_t e) const { return rest_[e]; }
 
  private:
@@ -29,8 +38,9 @@ class LinearSpring {
   Mat2 block(const StateView& s, std::size_t e) const;
 
   double k_;
-  std::vector<uint32_t> idx_;  ///< 2 per element
-  std::vector<double> rest_;   ///< L per element
+  std::vector<uint32_t> idx_;              ///< 2 per element
+  std::vector<double> rest_;               ///< L per element
+  std::vector<double> ks_each_, kd_each_;  ///< k and 0 per element, for constraint_set()
 };
 
 }  // namespace pinsim::plugins

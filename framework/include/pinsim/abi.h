@@ -42,7 +42,7 @@ extern "C" {
 /** Major version: changes with every incompatible change (see the top of this file). */
 #define PINSIM_ABI_MAJOR 4u
 /** Minor version: counts the compatible additions within the major. */
-#define PINSIM_ABI_MINOR 1u
+#define PINSIM_ABI_MINOR 2u
 /** The value of pinsim_plugin.abi_version: the major version. */
 #define PINSIM_ABI_VERSION PINSIM_ABI_MAJOR
 
@@ -70,6 +70,9 @@ enum {
    *  mutable state: no static or global scratch). The host then may compute two such
    *  forces' Jacobians at once; a host that does not know the bit ignores it. */
   PINSIM_CAP_CONCURRENT = 1u << 5,
+  /** force (4.2): constraint_set() and constraints() are provided: the force is a sum of soft
+   *  constraints (pinsim_constraint_set) */
+  PINSIM_CAP_CONSTRAINTS = 1u << 6,
   PINSIM_CAP_DISTANCE = 1u << 8,         /**< backend: distance() is provided */
   PINSIM_CAP_PARTICLE_CONTACT = 1u << 9, /**< backend: can resolve particle-particle contacts */
   PINSIM_CAP_INPUTS = 1u << 10,          /**< backend: input() is provided */
@@ -279,6 +282,23 @@ typedef struct pinsim_backend_api {
                  pinsim_error* err);
 } pinsim_backend_api;
 
+/** A force written as soft constraints (4.2; seed lecture, "Generalized spring model"): with
+ *  C_e(x) the constraint of element e and J_e = dC_e/dx its gradient,
+ *    E = sum_e ks_e/2 C_e^2 + const,   f = -sum_e J_e^T (ks_e C_e + kd_e J_e v),
+ *  so the plugin's energy() (if any) and add_force() agree with it. A host may use the
+ *  constraints in place of add_force (XPBD: compliance 1/ks_e), so both must describe the same
+ *  force. Filled by constraint_set(); its arrays belong to the instance and stay valid and
+ *  unchanged while it lives. */
+typedef struct pinsim_constraint_set {
+  uint64_t count; /**< number of constraints (elements) */
+  uint32_t arity; /**< particles per constraint, or PINSIM_ARITY_VARIABLE */
+  /** the constraints' particles: count * arity indices, or for PINSIM_ARITY_VARIABLE per
+   *  constraint its length L (>= 1) then its L indices, as pinsim_create_args.elements */
+  const uint32_t* particles;
+  const double* ks; /**< count stiffnesses, >= 0 (0: the constraint exerts no force); J/C^2 */
+  const double* kd; /**< count dampings, >= 0, on dC/dt; J s/C^2 */
+} pinsim_constraint_set;
+
 /** The table a plugin exports. Check abi_version and struct_size before anything else
  *  (the versions at the top of this file). */
 typedef struct pinsim_plugin {
@@ -301,6 +321,17 @@ typedef struct pinsim_plugin {
    * added it and is absent from a table that ends before it (PINSIM_TABLE_HAS) or whose
    * minor is older. A new minor appends its entries after the last one. */
   uint32_t abi_minor; /**< 4.1: PINSIM_ABI_MINOR the plugin was built with (absent: 0) */
+  /** 4.2, forces: fills *out with the instance's constraints (pinsim_constraint_set). NULL
+   *  unless PINSIM_CAP_CONSTRAINTS. */
+  int (*constraint_set)(void* self, pinsim_constraint_set* out, pinsim_error* err);
+  /** 4.2, forces: for the `count` constraints listed in `which` (indices below the set's
+   *  count), at positions x (2n), c[k] = C of constraint which[k] and its gradient dC/dp
+   *  into dc: the listed constraints one after another, each as 2 L doubles (d/dx, d/dy of its
+   *  particles in its order; L its particle count). Only reads the instance: the host may call
+   *  it from several threads at once, each call with its own arrays and error buffer. NULL
+   *  unless PINSIM_CAP_CONSTRAINTS. */
+  int (*constraints)(void* self, const double* x, const uint64_t* which, uint64_t count, double* c,
+                     double* dc, pinsim_error* err);
 } pinsim_plugin;
 
 /** Length of the smallest table of this major: a 4.0 table, every entry up to `backend`. */

@@ -19,7 +19,9 @@
 //   PINSIM_PLUGIN(MySpring)
 //
 // The base provides add_force, energy, add_dfdx and add_dfdv (and add_jacobians, both in one
-// pass, which the host calls), so the plugin gets the capabilities ENERGY | DFDX | DFDV.
+// pass, which the host calls), so the plugin gets the capabilities ENERGY | DFDX | DFDV; and
+// constraint_set and constraints, the constraints themselves (CONSTRAINTS: XPBD runs the
+// force as compliant constraints, alpha = 1/ks, check-plugin compares them with the energy).
 // Jacobians (s = ks C + kd dC/dt, H = d2C/dp2):
 //   df/dx = -ks J^T J - s H - kd J^T (H v)^T       (d(J v)/dx = H v)
 //   df/dv = -kd J^T J
@@ -58,6 +60,33 @@ class ConstraintSpring {
   /// Stores ks, kd and the element list; checks arity and indices against ctx.initial.
   ConstraintSpring(const CreateContext& ctx, double ks, double kd) : ks_(ks), kd_(kd) {
     idx_ = element_indices(ctx, Arity);
+    ks_each_.assign(count(), ks);
+    kd_each_.assign(count(), kd);
+  }
+
+  /// The elements as constraints: C, particles, ks and kd per element (pinsim/abi.h,
+  /// pinsim_constraint_set).
+  ConstraintSet constraint_set() const {
+    return {count(), Arity, idx_.data(), ks_each_.data(), kd_each_.data()};
+  }
+
+  /// c[k] = C of element which[k] at positions x (2n), its dC/dp into dc[2 Arity k ..] (x0 y0
+  /// x1 y1 ... over its particles). Only reads: may run on several threads at once.
+  void constraints(const double* x, const uint64_t* which, std::size_t n, double* c,
+                   double* dc) const {
+    for (std::size_t k = 0; k < n; ++k) {
+      if (which[k] >= count())
+        throw Error("constraints: element " + std::to_string(which[k]) + " of " +
+                    std::to_string(count()));
+      const auto e = static_cast<std::size_t>(which[k]);
+      Stencil p, g;
+      for (uint32_t a = 0; a < Arity; ++a) {
+        p(0, a) = x[2 * particle(e, a)];
+        p(1, a) = x[2 * particle(e, a) + 1];
+      }
+      c[k] = self().constraint(e, p, g);
+      std::copy(g.data(), g.data() + kDofs, dc + static_cast<std::size_t>(kDofs) * k);
+    }
   }
 
   /// f += -J^T (ks C + kd J v) for every element. Serially: element after element, each
@@ -311,6 +340,7 @@ class ConstraintSpring {
   double ks_;
   double kd_;
   std::vector<uint32_t> idx_;
+  std::vector<double> ks_each_, kd_each_;  ///< ks and kd per element, for constraint_set()
   // Plan and scratch of the parallel add_force (the host calls one instance from one thread
   // at a time; the chunks inside a call write disjoint parts).
   mutable std::vector<uint32_t> deferred_, shared_, shared_first_;

@@ -8,6 +8,11 @@
 //   double energy(const pinsim::StateView& s) const;                          // -> CAP_ENERGY
 //   void add_dfdx(const pinsim::StateView& s, pinsim::Triplets& J) const;     // -> CAP_DFDX
 //   void add_dfdv(const pinsim::StateView& s, pinsim::Triplets& J) const;     // -> CAP_DFDV
+//   pinsim::ConstraintSet constraint_set() const;                   // both -> CAP_CONSTRAINTS
+//   void constraints(const double* x, const uint64_t* which, std::size_t count, double* c,
+//                    double* dc) const;
+//     (the force as soft constraints, E = sum ks/2 C^2: pinsim_constraint_set in pinsim/abi.h;
+//     pinsim/constraint_spring.hpp provides both)
 // A backend plugin is a class with
 //   static pinsim::PluginInfo info();
 //   explicit MyBackend(const pinsim::CreateContext& ctx);   // ctx.scene holds obstacles, inputs
@@ -48,6 +53,9 @@ namespace pinsim {
 
 using Vec2 = Eigen::Vector2d;
 using Mat2 = Eigen::Matrix2d;
+/// A force's soft constraints (count, arity, particles, ks and kd per constraint; arrays owned
+/// by the instance): what constraint_set() returns.
+using ConstraintSet = pinsim_constraint_set;
 
 /// The error a plugin throws for bad parameters or bad input; the message reaches the user.
 class Error : public std::runtime_error {

@@ -79,7 +79,7 @@ void add_run_command(CLI::App& app) {
                 "sets its parameters");
   c->add_option("--integrator", a->integrator,
                 "Use this integrator instead of the scene's (explicit_euler, symplectic_euler, "
-                "velocity_verlet, rk4, implicit_euler)");
+                "velocity_verlet, rk4, implicit_euler, xpbd)");
   c->add_option("--threads", a->threads,
                 "Threads for the forces and the backend's particles (1 to " +
                     std::to_string(kMaxThreads) +

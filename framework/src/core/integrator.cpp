@@ -9,13 +9,16 @@
 namespace pinsim {
 namespace {
 
-const std::map<std::string, std::function<std::unique_ptr<Integrator>()>>& registry() {
-  static const std::map<std::string, std::function<std::unique_ptr<Integrator>()>> r = {
-      {"symplectic_euler", [] { return make_symplectic_euler(); }},
-      {"velocity_verlet", [] { return make_velocity_verlet(); }},
-      {"explicit_euler", [] { return make_explicit_euler(); }},
-      {"rk4", [] { return make_rk4(); }},
-      {"implicit_euler", [] { return make_implicit_euler(); }},
+using Factory = std::function<std::unique_ptr<Integrator>(const XpbdSettings&)>;
+
+const std::map<std::string, Factory>& registry() {
+  static const std::map<std::string, Factory> r = {
+      {"symplectic_euler", [](const XpbdSettings&) { return make_symplectic_euler(); }},
+      {"velocity_verlet", [](const XpbdSettings&) { return make_velocity_verlet(); }},
+      {"explicit_euler", [](const XpbdSettings&) { return make_explicit_euler(); }},
+      {"rk4", [](const XpbdSettings&) { return make_rk4(); }},
+      {"implicit_euler", [](const XpbdSettings&) { return make_implicit_euler(); }},
+      {"xpbd", [](const XpbdSettings& x) { return make_xpbd(x); }},
   };
   return r;
 }
@@ -28,14 +31,14 @@ std::vector<std::string> integrator_names() {
   return out;
 }
 
-std::unique_ptr<Integrator> make_integrator(const std::string& name) {
+std::unique_ptr<Integrator> make_integrator(const std::string& name, const XpbdSettings& xpbd) {
   auto it = registry().find(name);
   if (it == registry().end()) {
     std::string known;
     for (const auto& n : integrator_names()) known += (known.empty() ? "" : ", ") + n;
     throw std::invalid_argument("unknown integrator '" + name + "' (known: " + known + ")");
   }
-  return it->second();
+  return it->second(xpbd);
 }
 
 }  // namespace pinsim

@@ -8,6 +8,8 @@
 #include <string>
 #include <vector>
 
+#include "core/scene.hpp"
+
 namespace pinsim {
 
 class Simulation;
@@ -31,10 +33,14 @@ struct ImpactReference {
 /// A time integrator as stages around the backend's drift, which Simulation::step runs in
 /// this order: before_drift (forces, velocity updates) and the kick it returns; the drift;
 /// the impact correction of the drift's contacts with impact_reference(); after_drift.
+/// An integrator with substeps() > 1 has these stages run that many times per step, each
+/// over h = dt / substeps() from its own start time, with its own drift.
 /// The state moves only in these stages, and only the drift moves positions.
 class Integrator {
  public:
   virtual ~Integrator() = default;
+  /// Substeps per step (1 by default): the stages below run once per substep.
+  virtual uint32_t substeps() const { return 1; }
   /// Forces and the velocity updates before the drift: leaves in ctx.state().v the velocity
   /// the drift moves with, but for the kick it returns (which the step then applies).
   virtual Kick before_drift(StepContext& ctx, double h) = 0;
@@ -55,8 +61,9 @@ class Integrator {
   void step(Simulation& sim, double h);
 };
 
-/// The integrator called `name`; throws std::invalid_argument listing the known ones.
-std::unique_ptr<Integrator> make_integrator(const std::string& name);
+/// The integrator called `name` (xpbd with `xpbd`'s settings); throws std::invalid_argument
+/// listing the known ones.
+std::unique_ptr<Integrator> make_integrator(const std::string& name, const XpbdSettings& xpbd = {});
 /// Names of all integrators.
 std::vector<std::string> integrator_names();
 

@@ -103,5 +103,8 @@ struct ImplicitEulerOptions {
 };
 /// Linearized backward Euler of Baraff & Witkin 1998 (integrator_implicit_euler.cpp).
 std::unique_ptr<Integrator> make_implicit_euler(const ImplicitEulerOptions& options = {});
+/// Extended position-based dynamics with small steps, Macklin, Müller & Chentanez 2016 and
+/// Macklin et al. 2019, on the forces' constraints (integrator_xpbd.cpp, docs/xpbd.md).
+std::unique_ptr<Integrator> make_xpbd(const XpbdSettings& settings);
 
 }  // namespace pinsim

@@ -147,6 +147,7 @@ std::string format_param_table(const pinsim_plugin& plugin) {
       {PINSIM_CAP_INTERNAL, "internal"},
       {PINSIM_CAP_DISSIPATIVE, "dissipative"},
       {PINSIM_CAP_CONCURRENT, "concurrent"},
+      {PINSIM_CAP_CONSTRAINTS, "constraints"},
       {PINSIM_CAP_DISTANCE, "distance"},
       {PINSIM_CAP_PARTICLE_CONTACT, "particle-contact"},
       {PINSIM_CAP_INPUTS, "inputs"},

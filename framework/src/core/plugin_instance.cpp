@@ -133,6 +133,22 @@ void ForceInstance::add_jacobians(const pinsim_state_view& s, const pinsim_tripl
           context_, plugin_->name(), b->bad, 2 * s.n, s.n, s.n));
 }
 
+pinsim_constraint_set ForceInstance::constraint_set() const {
+  pinsim_error err = make_err(err_);
+  pinsim_constraint_set out{};
+  if (plugin_->table->constraint_set(self_, &out, &err) != 0) fail("constraint_set");
+  return out;
+}
+
+void ForceInstance::constraints(const double* x, const uint64_t* which, uint64_t count, double* c,
+                                double* dc) const {
+  char buf[512];
+  buf[0] = '\0';
+  pinsim_error err{buf, sizeof buf};
+  if (plugin_->table->constraints(self_, x, which, count, c, dc, &err) != 0)
+    throw PluginError(context_ + ": plugin '" + plugin_->name() + "' constraints failed: " + buf);
+}
+
 BackendInstance::BackendInstance(std::shared_ptr<const LoadedPlugin> plugin, const State& initial,
                                  InstanceArgs args)
     : plugin_(std::move(plugin)), context_(args.context) {

@@ -49,6 +49,18 @@ class ForceInstance {
   bool velocity_dependent() const { return dissipative() || !declares_energy(); }
   void add_jacobians(const pinsim_state_view& s, const pinsim_triplet_sink* dfdx,
                      const pinsim_triplet_sink* dfdv) const;
+  /// The force is a sum of soft constraints it reports (PINSIM_CAP_CONSTRAINTS, ABI 4.2).
+  bool provides_constraints() const {
+    return has_cap(PINSIM_CAP_CONSTRAINTS) && plugin_->table->constraint_set != nullptr &&
+           plugin_->table->constraints != nullptr;
+  }
+  /// The plugin's constraint set, unchecked (core/constraints.hpp checks it). Throws
+  /// PluginError.
+  pinsim_constraint_set constraint_set() const;
+  /// C and dC/dp of the constraints `which` at positions x (pinsim_plugin.constraints). May
+  /// run on several threads at once (an error buffer per call). Throws PluginError.
+  void constraints(const double* x, const uint64_t* which, uint64_t count, double* c,
+                   double* dc) const;
 
   const LoadedPlugin& plugin() const { return *plugin_; }
   const std::string& context() const { return context_; }

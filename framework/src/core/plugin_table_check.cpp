@@ -15,6 +15,7 @@ namespace {
 constexpr std::size_t kMinorTableEnd[] = {
     PINSIM_ABI_MIN_TABLE_SIZE,                              // 4.0: up to `backend`
     offsetof(pinsim_plugin, abi_minor) + sizeof(uint32_t),  // 4.1: abi_minor
+    offsetof(pinsim_plugin, constraints) + sizeof(void*),   // 4.2: constraint_set, constraints
 };
 static_assert(std::size(kMinorTableEnd) == PINSIM_ABI_MINOR + 1, "one table end per minor");
 
@@ -126,7 +127,12 @@ pinsim_plugin table_as_read(const pinsim_plugin& t) {
   // Entry by entry: the 4.0 table whole, then each later entry only if the table holds it.
   pinsim_plugin out{};
   std::memcpy(&out, &t, PINSIM_ABI_MIN_TABLE_SIZE);
-  out.abi_minor = table_version(t).minor;
+  const TableVersion v = table_version(t);
+  out.abi_minor = v.minor;
+  if (v.minor >= 2 && PINSIM_TABLE_HAS(&t, constraints)) {
+    out.constraint_set = t.constraint_set;
+    out.constraints = t.constraints;
+  }
   return out;
 }
 
@@ -150,8 +156,13 @@ std::string plugin_table_problems(const pinsim_plugin& t) {
       out.push_back(
           "provides the add_jacobians function but declares neither PINSIM_CAP_DFDX nor "
           "PINSIM_CAP_DFDV");
-    check_pairs(
-        caps, {{PINSIM_CAP_ENERGY, "PINSIM_CAP_ENERGY", t.force.energy != nullptr, "energy"}}, out);
+    check_pairs(caps,
+                {{PINSIM_CAP_ENERGY, "PINSIM_CAP_ENERGY", t.force.energy != nullptr, "energy"},
+                 {PINSIM_CAP_CONSTRAINTS, "PINSIM_CAP_CONSTRAINTS", t.constraint_set != nullptr,
+                  "constraint_set"},
+                 {PINSIM_CAP_CONSTRAINTS, "PINSIM_CAP_CONSTRAINTS", t.constraints != nullptr,
+                  "constraints"}},
+                out);
   } else if (t.kind == PINSIM_KIND_BACKEND) {
     check_pairs(
         caps,
@@ -159,6 +170,8 @@ std::string plugin_table_problems(const pinsim_plugin& t) {
          {PINSIM_CAP_INPUTS, "PINSIM_CAP_INPUTS", t.backend.input != nullptr, "input"},
          {PINSIM_CAP_OUTLINES, "PINSIM_CAP_OUTLINES", t.backend.outline != nullptr, "outline"}},
         out);
+    if (t.constraint_set != nullptr || t.constraints != nullptr)
+      out.push_back("is a backend but provides the constraint functions of a force");
   }
   std::string joined;
   for (const auto& s : out) joined += (joined.empty() ? "" : "; ") + s;

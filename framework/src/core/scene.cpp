@@ -232,6 +232,26 @@ void read_checks(const nlohmann::json& d, const Loc& root, Scene& s) {
         .fail("must be 0 (off) or a number >= 2, got " + num(s.kinetic_growth));
 }
 
+// xpbd: {"substeps": 1 to kMaxXpbdCount, "iterations": 1 to kMaxXpbdCount}, read whatever the
+// integrator (a --integrator xpbd run uses them).
+constexpr uint64_t kMaxXpbdCount = 100000;
+void read_xpbd(const nlohmann::json& d, const Loc& root, Scene& s) {
+  if (!d.contains("xpbd")) return;
+  const auto& x = d.at("xpbd");
+  require_object(x, root / "xpbd");
+  check_keys(x, {"substeps", "iterations"}, root / "xpbd");
+  auto count = [&](const char* key, uint32_t fallback) {
+    const uint64_t v = read_count_or(x, key, fallback, root / "xpbd");
+    if (v < 1 || v > kMaxXpbdCount)
+      (root / "xpbd" / key)
+          .fail("must be an integer from 1 to " + std::to_string(kMaxXpbdCount) + ", got " +
+                x.at(key).dump());
+    return static_cast<uint32_t>(v);
+  };
+  s.xpbd.substeps = count("substeps", s.xpbd.substeps);
+  s.xpbd.iterations = count("iterations", s.xpbd.iterations);
+}
+
 }  // namespace
 
 void apply_override(nlohmann::json& doc, const std::string& assignment, const std::string& label) {
@@ -407,15 +427,16 @@ Scene parse_scene(const std::string& text, const std::string& label, const fs::p
   const Loc root{label, "", true};
   require_object(d, root);
   check_keys(d,
-             {"$schema", "name", "description", "time", "integrator", "backend", "plugin_path",
-              "particles", "bodies", "forces", "obstacles", "inputs", "contacts", "output",
-              "checks", "crosscheck"},
+             {"$schema", "name", "description", "time", "integrator", "xpbd", "backend",
+              "plugin_path", "particles", "bodies", "forces", "obstacles", "inputs", "contacts",
+              "output", "checks", "crosscheck"},
              root);
   // Each part in turn: every error names its JSON path.
   s.name = read_string_or(d, "name", fs::path(label).stem().string(), root);
   s.description = read_string_or(d, "description", "", root);
   read_time(d, root, s);
   s.integrator = read_string_or(d, "integrator", "symplectic_euler", root);
+  read_xpbd(d, root, s);
   s.backend = read_backend(d, root);
   s.plugin_path = read_plugin_path(d, root, base_dir);
   read_particles_and_bodies(d, root, s);

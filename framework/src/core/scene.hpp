@@ -25,6 +25,12 @@ struct ForceSpec : PluginRef {
   nlohmann::json elements;  ///< null (all particles), a list, or {"body": ..., "set": ...}
 };
 
+/// The "xpbd" settings of a scene (used when the integrator is xpbd; docs/xpbd.md).
+struct XpbdSettings {
+  uint32_t substeps = 1;    ///< substeps per step, each with its own drift through the backend
+  uint32_t iterations = 1;  ///< constraint sweeps per substep
+};
+
 struct Scene {
   std::string label;               ///< file name used in messages
   std::filesystem::path base_dir;  ///< folder relative paths are resolved against
@@ -34,6 +40,7 @@ struct Scene {
   double dt = 0.0;        ///< time step, s
   double duration = 0.0;  ///< simulated time, s
   std::string integrator = "symplectic_euler";
+  XpbdSettings xpbd;  ///< "xpbd": {"substeps", "iterations"}
   PluginRef backend;
   std::vector<std::filesystem::path> plugin_path;
   ParticleList particles;

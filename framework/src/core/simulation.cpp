@@ -89,7 +89,7 @@ Simulation::Simulation(const Scene& scene, PluginLoader& loader, const RunOption
 #endif
   integrator_name_ = options.integrator.empty() ? scene_.integrator : options.integrator;
   try {
-    integrator_ = make_integrator(integrator_name_);
+    integrator_ = make_integrator(integrator_name_, scene_.xpbd);
   } catch (const std::invalid_argument& e) {
     throw SceneError(scene_.label + ": integrator: " + e.what());
   }
@@ -124,7 +124,8 @@ void Simulation::set_input(const std::string& name, bool pressed) {
   backend_->input(name, pressed, state_.t);
 }
 
-void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f) {
+void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f,
+                                const std::vector<char>* include) {
   const Eigen::Index n = s.x.cols();
   const bool one_chunk = n < static_cast<Eigen::Index>(kParallelItems);
   if (one_chunk) {  // one chunk: the serial loop, with nothing else on the way
@@ -134,7 +135,8 @@ void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f) {
     per_particle(n, [&](Eigen::Index b, Eigen::Index k) { f.middleCols(b, k).setZero(); });
   }
   const pinsim_state_view view = s.view();
-  for (const auto& force : forces_) force->add_force(view, f.data());
+  for (std::size_t k = 0; k < forces_.size(); ++k)
+    if (include == nullptr || (*include)[k] != 0) forces_[k]->add_force(view, f.data());
   ++force_evals_;
   if (one_chunk) {
     if (!f.allFinite()) check_finite_forces(s, f);
@@ -269,26 +271,32 @@ void Simulation::step() {
   StepContext ctx(*this);
   events_.clear();
 
-  // 1. Forces, and the integrator's velocity updates up to the drift.
-  const Kick kick = integrator_->before_drift(ctx, h);
-  // 2. Kick: the last of those updates, v += h M^-1 f, in one pass with the checks' copy of
-  //    the velocities entering the drift.
-  if (kick.f != nullptr)
-    pinsim::kick(state_, *kick.f, kick.h, &checks_.entering_drift());
-  else
-    checks_.before_drift(state_);
-  // 3. Drift through the backend: the positions, and the contacts on the way.
-  const std::span<const pinsim_event> contacts = drift(state_, h);
-  const bool acts_after = integrator_->acts_after_drift();
-  if (acts_after)
-    checks_.after_drift(state_);
-  else
-    checks_.after_last_drift();
-  // 4. Impact correction: each contact's impulse moved to the velocity at its time.
-  if (!contacts.empty())
-    correct_impacts(state_, contacts, state_.t, integrator_->impact_reference(state_, h));
-  // 5. The integrator's velocity updates after the drift (closing kicks).
-  if (acts_after) integrator_->after_drift(ctx, h);
+  const uint32_t substeps = integrator_->substeps();
+  if (substeps > 1) {
+    // 1.-5. once per substep, each with its drift (substep_stages)
+    substep_stages(ctx, *integrator_, h, substeps, &checks_);
+  } else {
+    // 1. Forces, and the integrator's velocity updates up to the drift.
+    const Kick kick = integrator_->before_drift(ctx, h);
+    // 2. Kick: the last of those updates, v += h M^-1 f, in one pass with the checks' copy of
+    //    the velocities entering the drift.
+    if (kick.f != nullptr)
+      pinsim::kick(state_, *kick.f, kick.h, &checks_.entering_drift());
+    else
+      checks_.before_drift(state_);
+    // 3. Drift through the backend: the positions, and the contacts on the way.
+    const std::span<const pinsim_event> contacts = drift(state_, h);
+    const bool acts_after = integrator_->acts_after_drift();
+    if (acts_after)
+      checks_.after_drift(state_);
+    else
+      checks_.after_last_drift();
+    // 4. Impact correction: each contact's impulse moved to the velocity at its time.
+    if (!contacts.empty())
+      correct_impacts(state_, contacts, state_.t, integrator_->impact_reference(state_, h));
+    // 5. The integrator's velocity updates after the drift (closing kicks).
+    if (acts_after) integrator_->after_drift(ctx, h);
+  }
   // 6. Checks: a finite state, and each particle's kinetic energy within the growth bound.
   const StepFinding found = checks_.check(state_);
   if (profiling_) t1 = Clock::now();
@@ -304,11 +312,38 @@ void Simulation::step() {
   }
 }
 
+// Stages 1 to 5 of Simulation::step for each of n substeps of h / n: substep k starts at
+// t0 + k h / n (the state's time during its stages; the step's bookkeeping sets the end time).
+// The checks see the sum of the velocity changes the drifts made.
+void Simulation::substep_stages(StepContext& ctx, Integrator& integrator, double h, uint32_t n,
+                                StepChecks* checks) {
+  const double hs = h / static_cast<double>(n);
+  const double t0 = state_.t;
+  if (checks != nullptr) checks->begin_drifts(state_);
+  for (uint32_t k = 0; k < n; ++k) {
+    state_.t = t0 + static_cast<double>(k) * hs;
+    const Kick kick = integrator.before_drift(ctx, hs);
+    if (kick.f != nullptr) pinsim::kick(state_, *kick.f, kick.h);
+    if (checks != nullptr) checks->before_substep_drift(state_);
+    const std::span<const pinsim_event> contacts = drift(state_, hs);
+    if (checks != nullptr) checks->after_substep_drift(state_);
+    if (!contacts.empty())
+      correct_impacts(state_, contacts, state_.t, integrator.impact_reference(state_, hs));
+    if (integrator.acts_after_drift()) integrator.after_drift(ctx, hs);
+  }
+  state_.t = t0;
+  if (checks != nullptr) checks->end_drifts();
+}
+
 // Stages 1 to 5 of Simulation::step, in its order, without the checks' copies.
 void Integrator::step(Simulation& sim, double h) {
   StepContext ctx(sim);
   State& s = sim.state_;
   sim.events_.clear();
+  if (substeps() > 1) {
+    sim.substep_stages(ctx, *this, h, substeps(), nullptr);
+    return;
+  }
   const Kick k = before_drift(ctx, h);
   if (k.f != nullptr) kick(s, *k.f, k.h);
   const std::span<const pinsim_event> contacts = sim.drift(s, h);
@@ -321,9 +356,12 @@ uint64_t StepContext::step() const { return sim_.step_ + 1; }
 const std::vector<std::unique_ptr<ForceInstance>>& StepContext::forces() const {
   return sim_.forces_;
 }
-void StepContext::compute_forces(const State& s, Eigen::Matrix2Xd& f) const {
-  sim_.compute_forces(s, f);
+void StepContext::compute_forces(const State& s, Eigen::Matrix2Xd& f,
+                                 const std::vector<char>* include) const {
+  sim_.compute_forces(s, f, include);
 }
+std::string StepContext::force_label(std::size_t k) const { return sim_.force_label(k); }
+std::size_t StepContext::threads() const { return sim_.threads_; }
 void StepContext::jacobians(std::size_t k, const State& s, const pinsim_triplet_sink& dfdx,
                             const pinsim_triplet_sink& dfdv) const {
   sim_.jacobians_of(k, s, dfdx, dfdv);

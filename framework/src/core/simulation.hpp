@@ -108,8 +108,10 @@ class Simulation {
   /// PINSIM_CAP_INPUTS or does not know the input.
   void set_input(const std::string& name, bool pressed);
 
-  /// f = sum of all forces at state s (f is resized to 2xN and zeroed first).
-  void compute_forces(const State& s, Eigen::Matrix2Xd& f);
+  /// f = sum of all forces at state s (f is resized to 2xN and zeroed first); with `include`,
+  /// of the forces k with (*include)[k] != 0 only.
+  void compute_forces(const State& s, Eigen::Matrix2Xd& f,
+                      const std::vector<char>* include = nullptr);
   /// The backend's position update of s over dt, no checks: appends its contacts to
   /// events() and returns them (valid until events() changes).
   std::span<const pinsim_event> drift(State& s, double dt);
@@ -155,6 +157,9 @@ class Simulation {
   friend class StepContext;
   friend class Integrator;  // Integrator::step: the stages without the checks
 
+  /// Stages 1 to 5 of step() for n substeps of h / n (checks: the step's, or none).
+  void substep_stages(StepContext& ctx, Integrator& integrator, double h, uint32_t n,
+                      StepChecks* checks);
   /// Force k's entries, as StepContext::jacobians hands them over; not counted.
   void jacobians_of(std::size_t k, const State& s, const pinsim_triplet_sink& sx,
                     const pinsim_triplet_sink& sv);

@@ -44,6 +44,17 @@ class StepChecks {
   /// Where the velocities entering the drift go when the kick before it fills them in its
   /// own pass (kick()'s copy), in place of before_drift's copy.
   Eigen::Matrix2Xd& entering_drift() { return v_in_; }
+  /// Around a step of several drifts (substeps): begin_drifts before the first, the substep
+  /// pair around each drift, end_drifts after the last; check() then takes out the sum of
+  /// the velocity changes of all the drifts.
+  void begin_drifts(const State& s) { drift_change_.setZero(2, s.v.cols()); }
+  void before_substep_drift(const State& s) { copy(s.v, v_sub_); }
+  void after_substep_drift(const State& s) { drift_change_ += s.v - v_sub_; }
+  void end_drifts() {
+    v_in_.setZero(2, drift_change_.cols());
+    v_out_ = drift_change_;
+    drifted_ = true;
+  }
   /// after_drift for a drift that ends the step (nothing changes s.v before check()): the
   /// velocities leaving it are s.v itself, which check() reads instead of a copy.
   void after_last_drift() {
@@ -81,6 +92,7 @@ class StepChecks {
   Eigen::VectorXd half_mass_;   ///< m_i / 2, 0 for pinned particles
   Eigen::VectorXd k_, k_next_;  ///< K_i^n, and K_i^{n+1} being computed
   Eigen::Matrix2Xd v_in_, v_out_;
+  Eigen::Matrix2Xd v_sub_, drift_change_;  ///< substeps: v entering a drift, the sum of changes
 };
 
 }  // namespace pinsim

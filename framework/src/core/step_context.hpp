@@ -28,9 +28,15 @@ class StepContext {
   /// The scene's forces in scene order (their flags: velocity_dependent(), concurrent()).
   const std::vector<std::unique_ptr<ForceInstance>>& forces() const;
 
-  /// f = the sum of all forces at s (f resized to 2xN and zeroed first). Throws NumericError
-  /// naming the plugin and the particle of a non-finite force.
-  void compute_forces(const State& s, Eigen::Matrix2Xd& f) const;
+  /// f = the sum of all forces at s (f resized to 2xN and zeroed first); with `include`, of
+  /// the forces k with (*include)[k] != 0 only. Throws NumericError naming the plugin and the
+  /// particle of a non-finite force.
+  void compute_forces(const State& s, Eigen::Matrix2Xd& f,
+                      const std::vector<char>* include = nullptr) const;
+  /// "forces[2] 'damped_spring'": force k by its place in the scene's forces array.
+  std::string force_label(std::size_t k) const;
+  /// Threads the run may use (--threads resolved).
+  std::size_t threads() const;
 
   /// Force k's Jacobian entries at s, df/dx into dfdx and df/dv into dfdv, in the order the
   /// force emits them (single entries through add, 2x2 blocks through add_blocks if the sink

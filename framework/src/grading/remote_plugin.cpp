@@ -476,10 +476,12 @@ std::shared_ptr<const LoadedPlugin> RemoteWorker::open(const std::string& name, 
     p.struct_size = sizeof(pinsim_plugin);
     p.kind = in.u32();
     p.arity = in.u32();
-    // Live inputs and outlines are not forwarded over the wire: the proxy never claims them
-    // (input and outline stay NULL), so the host refuses a play session and draws without
-    // outlines instead of calling into nothing.
-    p.capabilities = in.u32() & ~static_cast<uint32_t>(PINSIM_CAP_INPUTS | PINSIM_CAP_OUTLINES);
+    // Live inputs, outlines and constraints are not forwarded over the wire: the proxy never
+    // claims them (input, outline, constraint_set and constraints stay NULL), so the host
+    // refuses a play session, draws without outlines and runs the force through add_force
+    // instead of calling into nothing.
+    p.capabilities = in.u32() & ~static_cast<uint32_t>(PINSIM_CAP_INPUTS | PINSIM_CAP_OUTLINES |
+                                                       PINSIM_CAP_CONSTRAINTS);
     const bool has_energy = in.u32() != 0, has_jac = in.u32() != 0, has_dist = in.u32() != 0;
     p.name = t->keep(sanitize_text(in.str(256)));
     p.version = t->keep(sanitize_text(in.str(256)));

@@ -18,6 +18,7 @@
 #include "core/param_validation.hpp"
 #include "core/plugin_table_check.hpp"
 #include "tools/check_layout.hpp"
+#include "tools/constraint_checks.hpp"
 
 namespace pinsim {
 
@@ -104,6 +105,26 @@ class Instance {
     const pinsim_state_view sv = s.view();
     call("energy", [&](pinsim_error* e) { return t_->force.energy(self_, &sv, &out, e); });
     return out;
+  }
+  /// The constraint entry (PINSIM_CAP_CONSTRAINTS) with this instance's energy and force.
+  ConstraintProbe probe(const Sample& like) const {
+    ConstraintProbe p;
+    call("constraint_set", [&](pinsim_error* e) { return t_->constraint_set(self_, &p.set, e); });
+    p.constraints = [this](const double* x, const uint64_t* which, uint64_t count, double* c,
+                           double* dc) {
+      call("constraints",
+           [&](pinsim_error* e) { return t_->constraints(self_, x, which, count, c, dc, e); });
+    };
+    auto at = [like](const VectorXd& x, const VectorXd& v) {
+      Sample s = like;
+      s.x = Eigen::Map<const Matrix2Xd>(x.data(), 2, x.size() / 2);
+      s.v = Eigen::Map<const Matrix2Xd>(v.data(), 2, v.size() / 2);
+      return s;
+    };
+    if (has(PINSIM_CAP_ENERGY))
+      p.energy = [this, at](const VectorXd& x) { return energy(at(x, VectorXd::Zero(x.size()))); };
+    p.force = [this, at](const VectorXd& x, const VectorXd& v) { return force(at(x, v)); };
+    return p;
   }
   /// Dense df/dx (which = 0) or df/dv (which = 1).
   MatrixXd jacobian(const Sample& s, int which) const {
@@ -247,6 +268,7 @@ class Checker {
   CheckResult invariance_check();
   CheckResult degenerate_check();
   CheckResult dissipation_check();
+  CheckResult constraint_check(int which);
 
   /// Records a state's error; the reported worst is the worst failing one if any failed.
   static void keep_worst(CheckResult& r, double err, bool ok, const std::string& detail) {
@@ -564,6 +586,59 @@ CheckResult Checker::dissipation_check() {
   return r;
 }
 
+// The constraint entry (which: 0 energy, 1 force, 2 gradient) on random states: E = sum
+// ks/2 C^2 up to a constant, f = -sum J^T (ks C + kd J v), dC/dp by central differences.
+CheckResult Checker::constraint_check(int which) {
+  static const char* const names[] = {"constraint_energy", "constraint_force",
+                                      "constraint_gradient"};
+  static const char* const whats[] = {
+      "constraints: E(x) - E(x0) = sum ks/2 (C(x)^2 - C(x0)^2)",
+      "constraints: add_force = -sum J^T (ks C + kd J v)",
+      "constraints: dC/dp against central differences of C, step halving"};
+  CheckResult r{names[which],
+                whats[which],
+                CheckStatus::Pass,
+                0.0,
+                which == 2 ? opt_.fd_tolerance : 1e-8,
+                ""};
+  if (!(t_->capabilities & PINSIM_CAP_CONSTRAINTS)) {
+    r.status = CheckStatus::Skip;
+    r.detail = "no constraints (PINSIM_CAP_CONSTRAINTS not declared)";
+    return r;
+  }
+  if (which == 0 && !(t_->capabilities & PINSIM_CAP_ENERGY)) {
+    r.status = CheckStatus::Skip;
+    r.detail = "no energy to compare with (PINSIM_CAP_ENERGY not declared)";
+    return r;
+  }
+  for (int trial = 0; trial < opt_.trials; ++trial) {
+    const Sample init = rest_state();
+    const Sample a = random_state(), b = random_state();
+    auto inst = make(init);
+    const ConstraintProbe p = inst->probe(a);
+    const Eigen::Map<const VectorXd> xa(a.x.data(), a.x.size()), va(a.v.data(), a.v.size()),
+        xb(b.x.data(), b.x.size());
+    std::string detail;
+    const std::string state = "state " + std::to_string(trial) + ": ";
+    if (which == 0) {
+      const double e = constraint_energy_error(p, xb, xa, detail);
+      keep_worst(r, e, e <= r.tolerance, state + detail);
+    } else if (which == 1) {
+      const double e = constraint_force_error(p, xa, va, detail);
+      keep_worst(r, e, e <= r.tolerance, state + detail);
+    } else {
+      std::string d1;
+      const double e1 = constraint_gradient_error(p, xa, kStep, d1);
+      const double e2 = constraint_gradient_error(p, xa, kStep / 2, detail);
+      const bool ok = converged(e1, e2);
+      keep_worst(r, e2, ok,
+                 state + detail + "; error " + num(e1, 3) + " at h, " + num(e2, 3) + " at h/2" +
+                     (ok ? "" : " (does not converge)"));
+    }
+  }
+  return r;
+}
+
 CheckReport Checker::run() {
   CheckReport rep;
   rep.plugin = t_->name;
@@ -593,9 +668,17 @@ CheckReport Checker::run() {
       {"rigid_invariance", [&] { return invariance_check(); }},
       {"degenerate", [&] { return degenerate_check(); }},
       {"dissipation", [&] { return dissipation_check(); }},
+      {"constraint_energy", [&] { return constraint_check(0); }},
+      {"constraint_force", [&] { return constraint_check(1); }},
+      {"constraint_gradient", [&] { return constraint_check(2); }},
   };
   for (const auto& [name, fn] : checks) {
     if (!opt_.only.empty() && name != opt_.only) continue;
+    // The constraint checks are listed only for a plugin that has constraints (or when asked
+    // for by name): a plugin without them is not one check short.
+    if (opt_.only.empty() && name.rfind("constraint_", 0) == 0 &&
+        !(t_->capabilities & PINSIM_CAP_CONSTRAINTS))
+      continue;
     try {
       rep.checks.push_back(fn());
     } catch (const std::exception& e) {

@@ -342,7 +342,7 @@ double theory_limit(const std::string& in) {
   if (in == "symplectic_euler" || in == "velocity_verlet") return 2.0;
   if (in == "rk4") return 2.0 * std::sqrt(2.0);
   if (in == "explicit_euler") return 0.0;
-  if (in == "implicit_euler") return std::numeric_limits<double>::infinity();
+  if (in == "implicit_euler" || in == "xpbd") return std::numeric_limits<double>::infinity();
   return kNaN;
 }
 

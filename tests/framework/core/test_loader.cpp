@@ -55,11 +55,11 @@ TEST_CASE("loader: wrong ABI version names both versions") {
                       Contains("libfixture_wrong_abi.so") && Contains("wrong plugin ABI version") &&
                           Contains("plugin has " + std::to_string(PINSIM_ABI_VERSION + 41)) &&
                           Contains("expects " + std::to_string(PINSIM_ABI_VERSION)) &&
-                          Contains("this pinsim has ABI 4.1") && Contains("newer pinsim"));
+                          Contains("this pinsim has ABI 4.2") && Contains("newer pinsim"));
 }
 
 TEST_CASE("loader: a plugin built against the previous minor (4.0) loads and runs") {
-  static_assert(PINSIM_ABI_MAJOR == 4 && PINSIM_ABI_MINOR == 1);
+  static_assert(PINSIM_ABI_MAJOR == 4 && PINSIM_ABI_MINOR == 2);
   // The C fixture's table is the 4.0 layout, which ends before abi_minor; the word after it
   // holds 0xdeadbeef, so a loader reading past struct_size would refuse it as ABI 4.3735928559.
   auto p = load_plugin_file(fixtures / "libpinsim_plugin_abi40_push.so");
@@ -99,14 +99,38 @@ TEST_CASE("loader: a table shorter than the smallest of its major is refused") {
           Contains("plugin has ABI 4 and a table of " +
                    std::to_string(PINSIM_ABI_MIN_TABLE_SIZE - sizeof(void*)) + " bytes") &&
           Contains(std::to_string(PINSIM_ABI_MIN_TABLE_SIZE) + " bytes") &&
-          Contains("this pinsim has ABI 4.1") && Contains("rebuild it against this SDK"));
+          Contains("this pinsim has ABI 4.2") && Contains("rebuild it against this SDK"));
 }
 
 TEST_CASE("loader: a plugin built against a newer minor is refused") {
   REQUIRE_THROWS_WITH(load_plugin_file(fixtures / "libfixture_abi_newer_minor.so"),
                       Contains("libfixture_abi_newer_minor.so") &&
-                          Contains("plugin built against ABI 4.2, newer than this pinsim's 4.1") &&
-                          Contains("run it with a pinsim of ABI 4.2 or later"));
+                          Contains("plugin built against ABI 4.3, newer than this pinsim's 4.2") &&
+                          Contains("run it with a pinsim of ABI 4.3 or later"));
+}
+
+TEST_CASE("loader: a plugin built against 4.1 loads without the 4.2 constraint entries") {
+  // The fixture's 4.1 table is followed by 0xdeadbeef words where a 4.2 table keeps
+  // constraint_set and constraints: the host's copy must hold them as absent.
+  auto p = load_plugin_file(fixtures / "libpinsim_plugin_abi41_push.so");
+  CHECK(p->name() == "abi41_push");
+  CHECK(table_version(*p->table).minor == 1);
+  CHECK(p->table->constraint_set == nullptr);
+  CHECK(p->table->constraints == nullptr);
+  // It runs under xpbd as an external force: a constant force F = (2, -3) on a free particle
+  // of mass 2, so with no constraints xpbd is symplectic Euler (x_n as in the 4.0 test).
+  const std::string text = R"({"plugin_path": [")" + fixtures.string() + R"("],
+    "time": {"dt": 0.01, "duration": 1.0}, "integrator": "xpbd",
+    "particles": [{"x": [1, 1], "v": [0.5, 0], "mass": 2}],
+    "forces": [{"type": "abi41_push"}]})";
+  const Scene scene = parse_scene(text, "abi41.json", ".");
+  PluginLoader loader(plugin_search_dirs(scene.plugin_path));
+  Simulation sim(scene, loader);
+  const int n = 50;
+  for (int k = 0; k < n; ++k) sim.step();
+  const double h = 0.01, ay = -3.0 / 2.0, c = h * h * n * (n + 1) / 2.0;
+  CHECK(sim.state().x(1, 0) == Approx(1.0 + c * ay).epsilon(1e-12));
+  CHECK(sim.integrator_stats()["external_forces"][0] == "forces[0] 'abi41_push'");
 }
 
 TEST_CASE("loader: a plugin built against ABI 1 (no backend input()) is refused") {

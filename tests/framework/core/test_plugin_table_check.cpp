@@ -20,6 +20,10 @@ int jacobians(void*, const pinsim_state_view*, const pinsim_triplet_sink*,
 int advance(void*, pinsim_state_mut*, double, const pinsim_event_sink*, pinsim_error*) { return 0; }
 int distance(void*, const double*, double, double*, int64_t*, pinsim_error*) { return 0; }
 int input(void*, const char*, int, double, pinsim_error*) { return 0; }
+int constraint_set(void*, pinsim_constraint_set*, pinsim_error*) { return 0; }
+int constraints(void*, const double*, const uint64_t*, uint64_t, double*, double*, pinsim_error*) {
+  return 0;
+}
 
 pinsim_plugin force_table() {
   pinsim_plugin t{};
@@ -49,7 +53,7 @@ struct ShortTable {
 
 }  // namespace
 
-TEST_CASE("table version: a table of this SDK states 4.1 and is read whole") {
+TEST_CASE("table version: a table of this SDK states 4.2 and is read whole") {
   const pinsim_plugin t = force_table();
   CHECK(pinsim::table_version(t).major == PINSIM_ABI_MAJOR);
   CHECK(pinsim::table_version(t).minor == PINSIM_ABI_MINOR);
@@ -80,7 +84,7 @@ TEST_CASE("table version: another major, a short table, a newer or a missing min
   t.abi_version = PINSIM_ABI_MAJOR + 1;
   CHECK_THAT(pinsim::table_version_problem(t),
              Contains("wrong plugin ABI version: plugin has 5, this pinsim expects 4") &&
-                 Contains("this pinsim has ABI 4.1 and loads plugins of ABI 4.0 to 4.1") &&
+                 Contains("this pinsim has ABI 4.2 and loads plugins of ABI 4.0 to 4.2") &&
                  Contains("built for a newer pinsim"));
   t.abi_version = PINSIM_ABI_MAJOR - 1;
   CHECK_THAT(pinsim::table_version_problem(t), Contains("plugin has 3, this pinsim expects 4") &&
@@ -92,7 +96,7 @@ TEST_CASE("table version: another major, a short table, a newer or a missing min
   t = force_table();
   t.abi_minor = PINSIM_ABI_MINOR + 1;
   CHECK_THAT(pinsim::table_version_problem(t),
-             Contains("plugin built against ABI 4.2, newer than this pinsim's 4.1"));
+             Contains("plugin built against ABI 4.3, newer than this pinsim's 4.2"));
   t.abi_minor = 0;  // holds abi_minor, but says 4.0
   CHECK_THAT(pinsim::table_version_problem(t),
              Contains("malformed plugin table: it holds abi_minor") && Contains("states minor 0"));
@@ -137,6 +141,41 @@ TEST_CASE("table check: a flag without its function, or a function without its f
   const std::string bad = pinsim::plugin_table_problems(b);
   CHECK_THAT(bad, Contains("declares PINSIM_CAP_OUTLINES but its outline function is NULL"));
   CHECK(bad.find("INPUTS") == std::string::npos);
+}
+
+TEST_CASE("table check: the 4.2 constraint entries go with PINSIM_CAP_CONSTRAINTS") {
+  pinsim_plugin t = force_table();
+  t.capabilities = PINSIM_CAP_CONSTRAINTS;
+  t.constraint_set = constraint_set;
+  t.constraints = constraints;
+  CHECK(pinsim::plugin_table_problems(t).empty());
+  t.constraints = nullptr;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("declares PINSIM_CAP_CONSTRAINTS but its constraints function is NULL"));
+  t.capabilities = 0;
+  t.constraints = constraints;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("provides the constraint_set function but does not declare "
+                      "PINSIM_CAP_CONSTRAINTS"));
+  // a 4.1 table is read without them, whatever lies past its end
+  pinsim_plugin full = force_table();
+  full.constraint_set = constraint_set;
+  full.constraints = constraints;
+  full.capabilities = PINSIM_CAP_CONSTRAINTS;
+  ShortTable old(full, offsetof(pinsim_plugin, abi_minor) + sizeof(uint32_t));
+  old.table().abi_minor = 1;
+  CHECK(pinsim::table_version_problem(old.table()).empty());
+  const pinsim_plugin r = pinsim::table_as_read(old.table());
+  CHECK(r.constraint_set == nullptr);
+  CHECK(r.constraints == nullptr);
+  // and a backend never has them
+  pinsim_plugin b = force_table();
+  b.kind = PINSIM_KIND_BACKEND;
+  b.force.add_force = nullptr;
+  b.backend.advance = advance;
+  b.constraint_set = constraint_set;
+  CHECK_THAT(pinsim::plugin_table_problems(b),
+             Contains("is a backend but provides the constraint"));
 }
 
 TEST_CASE("table check: counts, strings and parameters") {

@@ -173,6 +173,18 @@ TEST_CASE("threads: the spring grid with every integrator, 1, 2 and 3 threads al
   }
 }
 
+// XPBD projects each colour's constraints in chunks on threads: the colours share no moving
+// particle, so the bits must not depend on the thread count (nor on the chunks).
+TEST_CASE("threads: xpbd on the spring grid, 1, 2 and 3 threads alike") {
+  const std::string scene = write_scene(spring_grid(), "springs");
+  const std::string extra =
+      "--integrator xpbd --set xpbd.substeps=3 --set xpbd.iterations=2 --set time.duration=0.005";
+  same_for_1_2_3(scene, extra);
+  const Run r = run(scene, 2, extra);
+  CHECK(r.summary["solver"]["constraints"].get<uint64_t>() > 100000);
+  CHECK(r.summary["solver"]["colours"].get<uint64_t>() >= 4);
+}
+
 TEST_CASE("threads: the Box2D backend runs with threads (serially inside), same bits") {
   same_for_1_2_3(configs + "/pinball.json", "--backend box2d --set time.duration=1");
 }

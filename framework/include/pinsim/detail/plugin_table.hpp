@@ -65,6 +65,13 @@ template <class T>
 concept HasJacobians = requires(const T& t, const StateView& s, Triplets* j) {
   t.add_jacobians(s, j, j);
 };
+/// Optional: the force as soft constraints (pinsim_constraint_set): both members or neither.
+template <class T>
+concept HasConstraints = requires(const T& t, const double* x, const uint64_t* which,
+                                  std::size_t count, double* out) {
+  { t.constraint_set() } -> std::convertible_to<ConstraintSet>;
+  t.constraints(x, which, count, out, out);
+};
 template <class T>
 concept HasDistance = requires(const T& t, const Vec2& p, double time, int64_t* o) {
   { t.distance(p, time, o) } -> std::convertible_to<double>;
@@ -187,6 +194,19 @@ const pinsim_plugin* make_table() {
         t.force.energy = [](void* self, const pinsim_state_view* sv, double* e,
                             pinsim_error* err) noexcept {
           return guarded(err, [&] { *e = static_cast<const T*>(self)->energy(StateView(*sv)); });
+        };
+      }
+      if constexpr (HasConstraints<T>) {
+        t.capabilities |= PINSIM_CAP_CONSTRAINTS;
+        t.constraint_set = [](void* self, pinsim_constraint_set* out, pinsim_error* err) noexcept {
+          return guarded(err, [&] { *out = static_cast<const T*>(self)->constraint_set(); });
+        };
+        t.constraints = [](void* self, const double* x, const uint64_t* which, uint64_t count,
+                           double* c, double* dc, pinsim_error* err) noexcept {
+          return guarded(err, [&] {
+            static_cast<const T*>(self)->constraints(x, which, static_cast<std::size_t>(count), c,
+                                                     dc);
+          });
         };
       }
       if constexpr (HasDfdx<T>) t.capabilities |= PINSIM_CAP_DFDX;

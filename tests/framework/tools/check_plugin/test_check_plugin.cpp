@@ -96,6 +96,45 @@ TEST_CASE("a ConstraintSpring with only C and dC/dp passes (numerical Hessian)")
   require_pass(check_fixture("libfixture_cs_triangle_area.so"), kDamped);
 }
 
+const std::initializer_list<const char*> kConstraints = {"constraint_energy", "constraint_force",
+                                                         "constraint_gradient"};
+
+TEST_CASE("shipped: the constraint entries agree with energy, force and differences of C") {
+  require_pass(check("linear_spring"), kConstraints);
+  require_pass(check("linear_spring", {{"rest_length", 0.0}}), kConstraints);
+  require_pass(check("damped_spring"), kConstraints);
+  require_pass(check("bending"), kConstraints);
+  require_pass(check("bending", {{"shape", "initial"}, {"length_scaled", true}}), kConstraints);
+  require_pass(check("area_pressure", {{"kd", 3.0}}), kConstraints);
+  // a plugin without constraints is not one check short
+  const auto g = check("gravity");
+  CHECK(g.find("constraint_energy") == nullptr);
+  CHECK(g.find("constraint_gradient") == nullptr);
+}
+
+TEST_CASE("fixture whose constraints misstate ks or dC/dp fails those checks") {
+  auto p = pinsim::load_plugin_file(std::string(PINSIM_TEST_FIXTURE_DIR) +
+                                    "/libfixture_wrong_constraint.so");
+  auto with = [&](const char* mistake) {
+    pinsim::CheckOptions o;
+    o.params = {{"mistake", mistake}};
+    return pinsim::check_force_plugin(*p, o);
+  };
+  require_pass(with("none"), kConstraints);
+  // ks = 2k: sum ks/2 C^2 changes twice as much as E, and -J^T ks C is twice the force
+  const auto ks = with("ks");
+  require_fail(ks, "constraint_energy");
+  CHECK(ks.find("constraint_energy")->worst == Approx(1.0 / 3.0).epsilon(1e-6));
+  require_fail(ks, "constraint_force");
+  CHECK(ks.find("constraint_gradient")->status == pinsim::CheckStatus::Pass);
+  CHECK(ks.find("gradient")->status == pinsim::CheckStatus::Pass);  // the force itself is right
+  // dC/dp 1 % long: differences of C disagree by 1 %, at both steps
+  const auto grad = with("gradient");
+  require_fail(grad, "constraint_gradient");
+  CHECK(grad.find("constraint_gradient")->worst == Approx(0.01 / 1.01).epsilon(1e-3));
+  CHECK(grad.find("constraint_energy")->status == pinsim::CheckStatus::Pass);
+}
+
 TEST_CASE("fixture with a sign error fails the gradient check") {
   const auto r = check_fixture("libfixture_wrong_sign.so");
   require_fail(r, "gradient");
