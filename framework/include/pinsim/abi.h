@@ -77,7 +77,7 @@ enum {
   PINSIM_CAP_PARTICLE_CONTACT = 1u << 9, /**< backend: can resolve particle-particle contacts */
   PINSIM_CAP_INPUTS = 1u << 10,          /**< backend: input() is provided */
   PINSIM_CAP_OUTLINES = 1u << 11,        /**< backend: outline() is provided */
-  /** backend: its advance() is differentiable as the host's adjoint of a run assumes: a
+  /** backend (4.2): its advance() is differentiable as the host's adjoint of a run assumes: a
    *  drift without contacts is x += dt v for particles with inv_mass > 0 (pinned ones stay),
    *  and the backend reports no contact it did not make. `pinsim grad` refuses a backend
    *  without it; a host that does not know the bit ignores it. */
