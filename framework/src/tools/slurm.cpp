@@ -448,6 +448,9 @@ void read_queue(const ArrayJob& job, const fs::path& script, const Submission& s
           it->second == "RUNNING" || it->second == "COMPLETING" ? Phase::running : Phase::pending;
       continue;
     }
+    // Its command ended between the two looks (read_statuses found no status file, and the
+    // job has left the queue since): its own status file, read on the next look, says how.
+    if (read_status(job, i)) continue;
     // Left the queue without a status file: ask Slurm how it ended. A shard that
     // completed but whose status file is not visible yet (a slow shared file system)
     // gets two minutes; one Slurm has forgotten counts as failed on the second look.
