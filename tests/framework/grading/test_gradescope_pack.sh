@@ -14,15 +14,26 @@
 #          leaves the zip's build; the build tree's plugin folder hidden): the same score as
 #          the same grader gives it in bubblewrap, more than 0, said to be the fallback.
 #   build: the zip's setup.sh as Gradescope runs it (apt skipped: the packages are here;
-#          through ccache when the environment names it), then its run_autograder with the pinsim it built: the correct source
-#          submission gets the score this build's grader gives it, one that does not
-#          compile 0; as root also under container_like without Landlock (Docker's defaults:
-#          the fallback sandbox, with run_autograder's permissions).
+#          through ccache when the environment names it), then its run_autograder with the
+#          pinsim it built: the correct source submission gets the score this build's grader
+#          gives it, one that does not compile 0; as root also under container_like without
+#          Landlock (Docker's defaults: the fallback sandbox, with run_autograder's
+#          permissions). In a fixed folder, ${TMPDIR:-/tmp}/pinsim-gradescope-build (one run
+#          at a time, under a lock): the build's compile lines hold that path, so ccache
+#          reuses the last run's objects.
 # Usage: test_gradescope_pack.sh quick|fallback|build SOURCE_DIR PINSIM_BIN PLUGIN_DIR
 #        [CONTAINER_LIKE]
 set -euo pipefail
 mode=$1 src=$2 bin=$3 plugins=$4 container_like=${5:-}
-tmp=$(mktemp -d "${TMPDIR:-/tmp}/pinsim-gradescope.XXXXXX")
+if [ "$mode" = build ]; then
+  tmp=${TMPDIR:-/tmp}/pinsim-gradescope-build
+  exec 9>"$tmp.lock"
+  flock 9
+  rm -rf "$tmp"
+  mkdir -m 700 "$tmp"
+else
+  tmp=$(mktemp -d "${TMPDIR:-/tmp}/pinsim-gradescope.XXXXXX")
+fi
 trap 'rm -rf "$tmp"' EXIT
 root=$tmp/autograder
 rubric=$src/configs/grading/force_assignment.json
@@ -219,9 +230,9 @@ expected=$(score_of "$root/results/results.json")
 unpack "$tmp/autograder.zip"
 chmod 711 "$tmp"  # /autograder's parent, /, lets every uid through
 # Gradescope builds from scratch; here a compiler cache in the environment (test.sh sets one
-# where ccache is installed) is kept, with the paths below the unpacked zip made relative so
-# that the next run's random folder hits it: what is checked is what setup.sh builds and how
-# it grades, not how long it takes (docs/grading.md has the time without a cache).
+# where ccache is installed) is kept, with the paths below the unpacked zip made relative:
+# what is checked is what setup.sh builds and how it grades, not how long it takes
+# (docs/grading.md has the time without a cache).
 [ -z "${CMAKE_CXX_COMPILER_LAUNCHER:-}" ] || export CCACHE_BASEDIR=$root/source CCACHE_NOHASHDIR=true
 start=$(date +%s)
 PINSIM_SETUP_JOBS=${PINSIM_SETUP_JOBS:-2} bash "$root/source/setup.sh" > "$tmp/setup.log" 2>&1 ||
