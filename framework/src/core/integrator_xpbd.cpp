@@ -19,8 +19,9 @@ namespace {
 ///   v += h M^-1 f_ext(x, v);  p = x + h v  (pinned particles: p = x)
 ///   lambda = 0; `iterations` times, colour by colour, for each constraint j with ks_j > 0:
 ///     alpha~ = 1 / (ks h^2),  gamma = alpha~ beta h = kd / (ks h)   (beta = kd, eq. 26)
-///     dlambda = (-C(p) - alpha~ lambda - gamma J (p - x)) / ((1 + gamma) sum_i w_i |J_i|^2 +
-///     alpha~) lambda += dlambda;  p_i += w_i J_i dlambda
+///     dlambda = (-C(p) - alpha~ lambda - gamma J (p - x))
+///               / ((1 + gamma) sum_i w_i |J_i|^2 + alpha~)
+///     lambda += dlambda;  p_i += w_i J_i dlambda
 ///   v += (p - p_predicted) / h;  then the backend's drift moves x by h v (= p without
 ///   contacts), resolving the contacts on the way.
 /// So positions move only in the drift, as for every integrator, and a contact's impulse in
