@@ -11,25 +11,15 @@
 #include "core/data_files.hpp"
 #include "core/format.hpp"
 #include "core/json_read.hpp"
+#include "core/set_path.hpp"
 #include "core/trajectory_hdf5.hpp"
 #include "core/value_limits.hpp"
 
 namespace fs = std::filesystem;
 
 namespace pinsim {
-namespace {
 
-/// Nesting depth of a JSON value: 0 for a scalar, 1 + the deepest element's for an array or
-/// object. Called on values from parse_json_text, so the recursion is bounded by its limit.
-std::size_t nesting_depth(const nlohmann::json& v) {
-  if (!v.is_structured()) return 0;
-  std::size_t d = 0;
-  for (const auto& e : v) d = std::max(d, nesting_depth(e));
-  return d + 1;
-}
-
-// Splits "forces[0].params.k" or "forces.0.params.k" into keys and indices.
-std::vector<std::string> split_path(const std::string& path) {
+std::vector<std::string> split_set_path(const std::string& path) {
   std::vector<std::string> out;
   std::string cur;
   for (char c : path) {
@@ -42,6 +32,17 @@ std::vector<std::string> split_path(const std::string& path) {
   }
   if (!cur.empty()) out.push_back(cur);
   return out;
+}
+
+namespace {
+
+/// Nesting depth of a JSON value: 0 for a scalar, 1 + the deepest element's for an array or
+/// object. Called on values from parse_json_text, so the recursion is bounded by its limit.
+std::size_t nesting_depth(const nlohmann::json& v) {
+  if (!v.is_structured()) return 0;
+  std::size_t d = 0;
+  for (const auto& e : v) d = std::max(d, nesting_depth(e));
+  return d + 1;
 }
 
 bool is_index(const std::string& s) {
@@ -271,7 +272,7 @@ void apply_override(nlohmann::json& doc, const std::string& assignment, const st
       throw SceneError(label + ": --set " + path + ": the value is not valid UTF-8");
     }
   }
-  const auto keys = split_path(path);
+  const auto keys = split_set_path(path);
   if (keys.empty()) throw InputError("--set " + assignment + ": empty path");
   // Each key is a level: the document stays within the parser's nesting limit, so nothing
   // recursive (a copy, a dump) meets a deeper one.

@@ -12,6 +12,7 @@
 #include "core/input_error.hpp"
 #include "core/instances.hpp"
 #include "core/integrator.hpp"
+#include "core/set_path.hpp"
 #include "gradients/checkpoints.hpp"
 
 namespace pinsim::grad {
@@ -24,22 +25,6 @@ constexpr double kReplayTolerance = 1e-9;
 
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
-/// "forces[1].params.ks" -> {"forces", "1", "params", "ks"} (as --set reads it).
-std::vector<std::string> path_keys(const std::string& path) {
-  std::vector<std::string> out;
-  std::string cur;
-  for (char c : path) {
-    if (c == '.' || c == '[' || c == ']') {
-      if (!cur.empty()) out.push_back(cur);
-      cur.clear();
-    } else {
-      cur += c;
-    }
-  }
-  if (!cur.empty()) out.push_back(cur);
-  return out;
 }
 
 bool parse_index(const std::string& s, std::size_t& out) {
@@ -448,7 +433,7 @@ std::vector<WrtValue> resolve_wrt(const Scene& scene, const Simulation& sim,
                                   const std::vector<std::string>& paths) {
   std::vector<WrtValue> out;
   for (const std::string& p : paths) {
-    const std::vector<std::string> k = path_keys(p);
+    const std::vector<std::string> k = split_set_path(p);
     if (k.empty()) bad_path(p, "empty path");
     if (k[0] == "particles") {
       out.push_back(particle_value(scene, p, k));
