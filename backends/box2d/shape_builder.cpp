@@ -7,7 +7,7 @@
 namespace pinsim::box2d {
 namespace {
 
-inline double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+using sdf::cross;
 
 double signed_area2(const std::vector<Vec2>& v) {
   double a = 0.0;

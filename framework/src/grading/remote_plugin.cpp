@@ -8,7 +8,6 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstring>
@@ -16,15 +15,12 @@
 #include <nlohmann/json.hpp>
 #include <vector>
 
+#include "core/clock.hpp"
 #include "core/format.hpp"
 #include "core/plugin_table_check.hpp"
 
 namespace pinsim::grading {
 namespace {
-
-double now() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
-}
 
 /// The worker whose tables are live. The C table's create() has no context pointer, so the
 /// proxy's create finds its worker here; the grader runs one test (one worker) at a time.
@@ -384,7 +380,7 @@ std::string RemoteWorker::call(Op op, const std::string& payload, uint64_t max_r
   bool have_head = false;
   const uint64_t limit = std::max(max_reply, kSmallReply);
   for (;;) {
-    const double left = deadline_ - now();
+    const double left = deadline_ - steady_seconds();
     if (left <= 0) {
       fail(WorkerFault::TimedOut, "", op);
       throw WorkerGone(failure_);
@@ -544,7 +540,7 @@ std::shared_ptr<const LoadedPlugin> RemoteWorker::open(const std::string& name, 
 
 void RemoteWorker::finish() {
   if (fault_ == WorkerFault::None && proc_.pid > 0) {
-    const double end = std::min(deadline_, now() + 2.0);
+    const double end = std::min(deadline_, steady_seconds() + 2.0);
     const double saved = deadline_;
     deadline_ = end;
     try {

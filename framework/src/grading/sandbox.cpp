@@ -13,7 +13,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -21,6 +20,7 @@
 #include <memory>
 #include <stdexcept>
 
+#include "core/clock.hpp"
 #include "core/format.hpp"
 #include "grading/sandbox_fallback.hpp"
 #include "grading/text.hpp"
@@ -73,10 +73,6 @@ std::string bwrap_program() {
   // The test suite points this at a missing program to prove the grader refuses to grade.
   const char* e = std::getenv("PINSIM_BWRAP");
   return e && *e ? e : "/usr/bin/bwrap";
-}
-
-double now() {
-  return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count();
 }
 
 /// Processes the grader's own uid has now (RLIMIT_NPROC counts them all when not root).
@@ -249,9 +245,9 @@ std::vector<std::string> host_args(const SandboxSpec& spec, std::vector<std::str
 /// Reads bwrap's info JSON ({"child-pid": N, ...}) for the host pid of the sandbox's init.
 pid_t read_inner_pid(int fd, double timeout) {
   std::string text;
-  const double end = now() + timeout;
+  const double end = steady_seconds() + timeout;
   while (text.find('}') == std::string::npos) {
-    const double left = end - now();
+    const double left = end - steady_seconds();
     if (left <= 0) break;
     pollfd p{fd, POLLIN, 0};
     if (::poll(&p, 1, static_cast<int>(left * 1000) + 1) <= 0) break;
@@ -540,7 +536,7 @@ StepEnd kill_and_reap(Sandboxed& s, bool timed_out) {
 StepOutput run_sandboxed(const std::vector<std::string>& argv, const SandboxSpec& spec,
                          std::size_t keep_head, std::size_t keep_tail) {
   StepOutput r;
-  const double start = now();
+  const double start = steady_seconds();
   Sandboxed s = start_sandboxed(argv, spec);
   BoundedText printed(keep_head, keep_tail);
   bool timed_out = false, eof = false;
@@ -572,7 +568,7 @@ StepOutput run_sandboxed(const std::vector<std::string>& argv, const SandboxSpec
         printed.append(buf, static_cast<std::size_t>(n));
       break;
     }
-    if (now() - start > spec.limits.wall_seconds) {
+    if (steady_seconds() - start > spec.limits.wall_seconds) {
       timed_out = true;
       break;
     }
@@ -593,7 +589,7 @@ StepOutput run_sandboxed(const std::vector<std::string>& argv, const SandboxSpec
     r.end = kill_and_reap(s, timed_out);
   }
   r.printed = printed.text();
-  r.seconds = now() - start;
+  r.seconds = steady_seconds() - start;
   return r;
 }
 

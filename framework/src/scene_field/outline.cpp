@@ -6,8 +6,6 @@
 namespace pinsim::sdf {
 namespace {
 
-inline double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
-
 /// An edge piece kept for the result.
 struct Seg {
   Vec2 a, b;

@@ -11,8 +11,6 @@ namespace {
 
 constexpr int kMaxDepth = 32;
 
-inline double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
-
 /// True if closed segments pq and rs share a point.
 bool segments_touch(const Vec2& p, const Vec2& q, const Vec2& r, const Vec2& s) {
   auto orient = [](const Vec2& a, const Vec2& b, const Vec2& c) {

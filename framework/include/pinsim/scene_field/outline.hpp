@@ -7,6 +7,9 @@
 
 namespace pinsim::sdf {
 
+/// The z component of a x b (twice the signed area of the triangle 0, a, b).
+inline double cross(const Vec2& a, const Vec2& b) { return a.x() * b.y() - a.y() * b.x(); }
+
 /// A closed polyline (the last point joins the first; it is not repeated).
 using Ring = std::vector<Vec2>;
 
