@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <string>
 
@@ -175,13 +176,13 @@ class Xpbd : public Integrator {
   template <class Run>
   void sweep(StepContext& ctx, XpbdConstraints& set, std::size_t c, Run&& run) {
     const std::size_t b = set.begin(c), e = set.begin(c + 1);
-    bool any = false;
+    std::atomic<bool> any{false};  // only ever set: no order to keep
     for_chunks(e - b, kChunk, [&](std::size_t k, std::size_t cb, std::size_t ce) {
       const std::size_t q = run(b + cb, b + ce);
       bad_[k] = q;
-      if (q != XpbdConstraints::kFine) any = true;  // only ever set to true: no order to keep
+      if (q != XpbdConstraints::kFine) any.store(true, std::memory_order_relaxed);
     });
-    if (!any) return;
+    if (!any.load(std::memory_order_relaxed)) return;
     for (std::size_t k = 0; k < chunk_count(e - b, kChunk); ++k)
       if (bad_[k] != XpbdConstraints::kFine) non_finite(ctx, set, bad_[k]);
   }

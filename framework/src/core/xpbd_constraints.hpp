@@ -28,7 +28,8 @@ class XpbdConstraints {
   static constexpr std::size_t kFine = ~std::size_t{0};
 
   /// The constraints j of `system` with include[j] != 0, coloured with `moves` (particles
-  /// with inverse mass > 0), with the inverse masses `inv_mass`.
+  /// with inverse mass > 0), with the inverse masses `inv_mass`, read once: a run's masses
+  /// and pins do not change. Keeps a pointer to `system`, which must outlive it.
   XpbdConstraints(const ConstraintSystem& system, const std::vector<char>& include,
                   const std::vector<char>& moves, const Eigen::VectorXd& inv_mass);
   XpbdConstraints() = default;
