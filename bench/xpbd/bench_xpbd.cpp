@@ -13,8 +13,12 @@
 //  stiffness  a chain of 10 particles hanging from a pinned one on springs k (h w ~ 8 at
 //             dt = 1/60), damped to rest over 20 s, 1 substep: effective stiffness
 //             k * (exact stretch / measured stretch) against iterations.
+//  sag        the 100 x 100 cloth (cost's scene) released at rest, 2 s: the height of the
+//             bottom row's middle particle (50) and the total energy, xpbd at dt = 1/60 with
+//             1 to 64 substeps of one sweep against symplectic Euler at dt = 5e-4.
 //
-// Usage: pinsim_bench_xpbd [section]   (cost, precision, damping, stiffness; default all)
+// Usage: pinsim_bench_xpbd [section]   (cost, precision, damping, stiffness, sag; default
+// all)
 #include <algorithm>
 #include <chrono>
 #include <cmath>
@@ -203,6 +207,22 @@ void stiffness(pinsim::PluginLoader& loader) {
     }
 }
 
+void sag(pinsim::PluginLoader& loader) {
+  std::printf("# sag\nintegrator,substeps,dt,y_bottom_middle_m,energy_start_J,energy_2s_J\n");
+  json cloth = pinsim::bench::cloth_scene(100);
+  cloth["time"]["duration"] = 2.0;
+  auto row = [&](const std::string& integrator, double dt, int substeps) {
+    auto sim = make(loader, with_integrator(cloth, integrator, dt, substeps, 1));
+    const double e0 = sim->kinetic_energy(sim->state()) + sim->potential_energy(sim->state());
+    for (uint64_t k = 0; k < sim->scene().steps(); ++k) sim->step();
+    const double e = sim->kinetic_energy(sim->state()) + sim->potential_energy(sim->state());
+    std::printf("%s,%d,%.6g,%.4f,%.4g,%.4g\n", integrator.c_str(), substeps, dt,
+                sim->state().x(1, 50), e0, e);
+  };
+  for (int s : {1, 4, 16, 64}) row("xpbd", 1.0 / 60.0, s);
+  row("symplectic_euler", 5e-4, 1);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -212,7 +232,8 @@ int main(int argc, char** argv) {
       {"cost", [&] { cost(loader); }},
       {"precision", [&] { precision(loader); }},
       {"damping", [&] { damping(loader); }},
-      {"stiffness", [&] { stiffness(loader); }}};
+      {"stiffness", [&] { stiffness(loader); }},
+      {"sag", [&] { sag(loader); }}};
   for (const auto& [name, fn] : sections)
     if (only.empty() || only == name) fn();
   return 0;

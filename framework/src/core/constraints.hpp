@@ -46,6 +46,12 @@ class ConstraintSystem {
   /// may run on several threads at once with their own arrays. Throws PluginError.
   void evaluate(const double* x, const uint32_t* ids, const uint64_t* elements, std::size_t n,
                 double* c, double* dc) const;
+  /// evaluate for n elements of force k (one plugin call): c[q] = C of elements[q], its dC/dp
+  /// into dc, one constraint after another.
+  void evaluate_force(uint32_t k, const double* x, const uint64_t* elements, std::size_t n,
+                      double* c, double* dc) const {
+    forces_[k]->constraints(x, elements, n, c, dc);
+  }
 
  private:
   std::vector<const ForceInstance*> forces_;

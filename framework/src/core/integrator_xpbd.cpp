@@ -2,12 +2,17 @@
 // backend.
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <string>
 
-#include "core/constraint_colouring.hpp"
 #include "core/constraints.hpp"
+#include "core/format.hpp"
 #include "core/integrators.hpp"
+#include "core/simulation.hpp"
 #include "core/step_context.hpp"
+#include "core/xpbd_constraints.hpp"
 
 namespace pinsim {
 namespace {
@@ -16,7 +21,9 @@ namespace {
 /// one or more sweeps (Macklin, Storey, Lu et al. 2019, "Small steps"). Each force that reports
 /// constraints (E = sum ks/2 C^2, f = -J^T (ks C + kd J v)) is solved as compliant constraints;
 /// every other force acts as an external force. One substep of h = dt / substeps:
-///   v += h M^-1 f_ext(x, v);  p = x + h v  (pinned particles: p = x)
+///   v += h M^-1 f_ext(x, v)
+///   pure dampers (ks = 0, kd > 0), colour by colour: v += h M^-1 f_damp(v') (backward Euler)
+///   p = x + h v  (pinned particles: p = x)
 ///   lambda = 0; `iterations` times, colour by colour, for each constraint j with ks_j > 0:
 ///     alpha~ = 1 / (ks h^2),  gamma = alpha~ beta h = kd / (ks h)   (beta = kd, eq. 26)
 ///     dlambda = (-C(p) - alpha~ lambda - gamma J (p - x))
@@ -26,7 +33,9 @@ namespace {
 ///   contacts), resolving the contacts on the way.
 /// So positions move only in the drift, as for every integrator, and a contact's impulse in
 /// the drift stays in v. Constraints of one colour share no moving particle, so each colour
-/// runs in chunks on threads with the same bits for any thread count.
+/// runs in chunks on threads with the same bits for any thread count. A projection that makes
+/// a value non-finite stops the step with a NumericError naming the force, its element and
+/// the particle.
 class Xpbd : public Integrator {
  public:
   explicit Xpbd(const XpbdSettings& settings) : settings_(settings) {}
@@ -37,45 +46,59 @@ class Xpbd : public Integrator {
     if (!ready_) setup(ctx);
     State& s = ctx.state();
     const Eigen::Index n = s.x.cols();
-    // 1. External forces: a kick of the substep.
-    if (any_external_) {
-      ctx.compute_forces(s, f_, &external_);
-      kick(s, f_, h);
-    }
-    // 2. Prediction p = x + h v.
-    p_.resize(2, n);
-    p0_.resize(2, n);
-    per_particle(n, [&](Eigen::Index b, Eigen::Index k) {
-      for (Eigen::Index i = b; i < b + k; ++i) {
-        p_.col(i) = s.inv_mass[i] > 0.0 ? Eigen::Vector2d(s.x.col(i) + h * s.v.col(i))
-                                        : Eigen::Vector2d(s.x.col(i));
-        p0_.col(i) = p_.col(i);
-      }
-    });
-    // 3. The constraint sweeps, colour by colour.
-    std::fill(lambda_.begin(), lambda_.end(), 0.0);
+    compliant_.set_step(h);
+    dampers_.set_step(h);
+    // 1. External forces: a kick of the substep, in one pass with the prediction unless
+    //    dampers come between them.
+    const bool kick_apart = any_external_ && dampers_.size() > 0;
+    if (any_external_) ctx.compute_forces(s, f_, &external_);
+    if (kick_apart) kick(s, f_, h);
+    // 2. Pure dampers, on the velocities at x.
+    for (std::size_t c = 0; c < dampers_.colours(); ++c)
+      sweep(ctx, dampers_, c, [&](std::size_t b, std::size_t e) {
+        return dampers_.damp(s.x.data(), s.v.data(), b, e);
+      });
+    // 3. Prediction p = x + h v.
+    predict(s, h, any_external_ && !kick_apart ? &f_ : nullptr);
+    // 4. The constraint sweeps, colour by colour.
+    const bool keep_lambda = settings_.iterations > 1;
     for (uint32_t it = 0; it < settings_.iterations; ++it)
-      for (std::size_t c = 0; c < colouring_.colours(); ++c) {
-        const std::size_t b = colouring_.start[c], e = colouring_.start[c + 1];
-        for_chunks(e - b, kChunk, [&](std::size_t, std::size_t cb, std::size_t ce) {
-          project(s, h, b + cb, b + ce);
+      for (std::size_t c = 0; c < compliant_.colours(); ++c)
+        sweep(ctx, compliant_, c, [&](std::size_t b, std::size_t e) {
+          return compliant_.project(s.x.data(), p_.data(), it == 0, keep_lambda, b, e);
         });
-      }
-    // 4. The velocity the drift moves with: v + (p - p_predicted) / h.
+    // 5. The velocity the drift moves with: v + (p - p_predicted) / h, with p_predicted = x +
+    //    h v recomputed (the same operands as in the prediction, so the same bits).
     const double inv_h = 1.0 / h;
-    per_particle(n, [&](Eigen::Index b, Eigen::Index k) {
-      for (Eigen::Index i = b; i < b + k; ++i)
-        if (s.inv_mass[i] > 0.0) s.v.col(i) += (p_.col(i) - p0_.col(i)) * inv_h;
-    });
+    double* v = s.v.data();
+    const double* x = s.x.data();
+    const double* p = p_.data();
+    const double* w = s.inv_mass.data();
+    for_chunks(
+        static_cast<std::size_t>(n), kParticleChunk,
+        [=](std::size_t, std::size_t b, std::size_t e) {
+          for (std::size_t i = b; i < e; ++i) {
+            if (!(w[i] > 0.0)) continue;
+            const double px = x[2 * i] + h * v[2 * i], py = x[2 * i + 1] + h * v[2 * i + 1];
+            v[2 * i] += (p[2 * i] - px) * inv_h;
+            v[2 * i + 1] += (p[2 * i + 1] - py) * inv_h;
+          }
+        },
+        Schedule::Even);
     return {};
   }
 
   nlohmann::json stats() const override {
     nlohmann::json external = nlohmann::json::array();
     for (const auto& l : external_labels_) external.push_back(l);
-    return {{"substeps", settings_.substeps},  {"iterations", settings_.iterations},
-            {"constraints", ids_.size()},      {"constraints_skipped_ks_0", skipped_},
-            {"colours", colouring_.colours()}, {"external_forces", external}};
+    return {{"substeps", settings_.substeps},
+            {"iterations", settings_.iterations},
+            {"constraints", compliant_.size()},
+            {"colours", compliant_.colours()},
+            {"dampers", dampers_.size()},
+            {"damper_colours", dampers_.colours()},
+            {"constraints_skipped_ks_kd_0", skipped_},
+            {"external_forces", external}};
   }
 
  private:
@@ -101,80 +124,104 @@ class Xpbd : public Integrator {
           "force as an external force each substep",
           labels[k], forces[k]->plugin().name());
     }
-    // ks = 0: infinite compliance, no force; left out.
-    std::vector<char> include(system_.size(), 0), moves(static_cast<std::size_t>(s.x.cols()));
-    for (std::size_t j = 0; j < system_.size(); ++j) include[j] = system_.ks(j) > 0.0 ? 1 : 0;
+    // ks > 0: compliant constraints. ks = 0 (infinite compliance) with kd > 0: a pure damper,
+    // which no compliant constraint can be; ks = kd = 0: no force, left out.
+    const std::size_t m = system_.size();
+    std::vector<char> compliant(m, 0), damper(m, 0), moves(static_cast<std::size_t>(s.x.cols()));
+    for (std::size_t j = 0; j < m; ++j) {
+      compliant[j] = system_.ks(j) > 0.0 ? 1 : 0;
+      damper[j] = system_.ks(j) == 0.0 && system_.kd(j) > 0.0 ? 1 : 0;
+    }
     for (std::size_t i = 0; i < moves.size(); ++i)
       moves[i] = s.inv_mass[static_cast<Eigen::Index>(i)] > 0.0 ? 1 : 0;
-    colouring_ = colour_constraints(system_, include, moves);
-    skipped_ = system_.size() - colouring_.order.size();
-    // The constraints in colour order, with their particles and coefficients.
-    ids_ = colouring_.order;
-    slot_.assign(1, 0);
-    for (uint32_t j : ids_) {
-      elements_.push_back(system_.element(j));
-      for (uint32_t i : system_.particles(j)) particles_.push_back(i);
-      slot_.push_back(particles_.size());
-      ks_.push_back(system_.ks(j));
-      kd_.push_back(system_.kd(j));
-    }
-    lambda_.assign(ids_.size(), 0.0);
-    c_.assign(ids_.size(), 0.0);
-    dc_.assign(2 * particles_.size(), 0.0);
+    compliant_ = XpbdConstraints(system_, compliant, moves, s.inv_mass);
+    dampers_ = XpbdConstraints(system_, damper, moves, s.inv_mass);
+    skipped_ = m - compliant_.size() - dampers_.size();
+    p_.resize(2, s.x.cols());
+    bad_.assign(chunk_count(std::max(compliant_.size(), dampers_.size()), kChunk), 0);
     spdlog::debug(
-        "xpbd: {} constraints in {} colours ({} with ks = 0 skipped), {} substeps of {} "
-        "iteration(s)",
-        ids_.size(), colouring_.colours(), skipped_, settings_.substeps, settings_.iterations);
+        "xpbd: {} constraints in {} colours, {} dampers (ks = 0) in {} colours, {} with ks = kd "
+        "= 0 skipped; {} substeps of {} iteration(s)",
+        compliant_.size(), compliant_.colours(), dampers_.size(), dampers_.colours(), skipped_,
+        settings_.substeps, settings_.iterations);
   }
 
-  /// Projects the constraints [b, e) of one colour (colour order) onto p_.
-  void project(const State& s, double h, std::size_t b, std::size_t e) {
-    system_.evaluate(p_.data(), ids_.data() + b, elements_.data() + b, e - b, c_.data() + b,
-                     dc_.data() + 2 * slot_[b]);
+  /// p = x + h v (pinned particles: p = x), after the kick v += h M^-1 f when f is given.
+  void predict(State& s, double h, const Eigen::Matrix2Xd* f) {
+    double* v = s.v.data();
     double* p = p_.data();
     const double* x = s.x.data();
     const double* w = s.inv_mass.data();
-    for (std::size_t q = b; q < e; ++q) {
-      const double* g = dc_.data() + 2 * slot_[q];
-      const uint32_t* id = particles_.data() + slot_[q];
-      const std::size_t m = slot_[q + 1] - slot_[q];
-      double sw = 0.0, gdx = 0.0;
-      for (std::size_t a = 0; a < m; ++a) {
-        const uint32_t i = id[a];
-        sw += w[i] * (g[2 * a] * g[2 * a] + g[2 * a + 1] * g[2 * a + 1]);
-        gdx += g[2 * a] * (p[2 * i] - x[2 * i]) + g[2 * a + 1] * (p[2 * i + 1] - x[2 * i + 1]);
-      }
-      // alpha~ = alpha / h^2 with alpha = 1 / ks (0 for an infinitely stiff constraint)
-      const double at = 1.0 / (ks_[q] * h * h);
-      const double gamma = kd_[q] == 0.0 ? 0.0 : at * kd_[q] * h;
-      const double denom = (1.0 + gamma) * sw + at;
-      if (!(denom > 0.0)) continue;  // no moving particle, or a zero gradient
-      const double dl = (-c_[q] - at * lambda_[q] - gamma * gdx) / denom;
-      lambda_[q] += dl;
-      for (std::size_t a = 0; a < m; ++a) {
-        const uint32_t i = id[a];
-        if (!(w[i] > 0.0)) continue;  // pinned: never written (other colours share it)
-        p[2 * i] += w[i] * dl * g[2 * a];
-        p[2 * i + 1] += w[i] * dl * g[2 * a + 1];
-      }
+    const double* fd = f != nullptr ? f->data() : nullptr;
+    for_chunks(
+        static_cast<std::size_t>(s.x.cols()), kParticleChunk,
+        [=](std::size_t, std::size_t b, std::size_t e) {
+          for (std::size_t i = b; i < e; ++i) {
+            if (fd != nullptr) {  // kick(): the same operations
+              const double a = h * w[i];
+              v[2 * i] += a * fd[2 * i];
+              v[2 * i + 1] += a * fd[2 * i + 1];
+            }
+            const bool moves = w[i] > 0.0;
+            p[2 * i] = moves ? x[2 * i] + h * v[2 * i] : x[2 * i];
+            p[2 * i + 1] = moves ? x[2 * i + 1] + h * v[2 * i + 1] : x[2 * i + 1];
+          }
+        },
+        Schedule::Even);
+  }
+
+  /// Colour c of `set` in fixed chunks of kChunk, each by run(b, e) (which returns the first
+  /// position it made non-finite, or kFine); then the first such position, in colour order,
+  /// stops the step.
+  template <class Run>
+  void sweep(StepContext& ctx, XpbdConstraints& set, std::size_t c, Run&& run) {
+    const std::size_t b = set.begin(c), e = set.begin(c + 1);
+    std::atomic<bool> any{false};  // only ever set: no order to keep
+    for_chunks(e - b, kChunk, [&](std::size_t k, std::size_t cb, std::size_t ce) {
+      const std::size_t q = run(b + cb, b + ce);
+      bad_[k] = q;
+      if (q != XpbdConstraints::kFine) any.store(true, std::memory_order_relaxed);
+    });
+    if (!any.load(std::memory_order_relaxed)) return;
+    for (std::size_t k = 0; k < chunk_count(e - b, kChunk); ++k)
+      if (bad_[k] != XpbdConstraints::kFine) non_finite(ctx, set, bad_[k]);
+  }
+
+  /// Throws the NumericError for the constraint at position q of `set`, whose update made a
+  /// coordinate of its first moving particle with one non-finite.
+  [[noreturn]] void non_finite(StepContext& ctx, const XpbdConstraints& set, std::size_t q) const {
+    const State& s = ctx.state();
+    const bool damper = &set == &dampers_;
+    const Eigen::Matrix2Xd& out = damper ? s.v : p_;
+    const uint32_t j = set.id(q);
+    const std::string who = ctx.force_label(system_.force(j));
+    int64_t particle = -1;
+    std::string list;
+    for (uint32_t i : set.particles(q)) {
+      list += (list.empty() ? "" : ", ") + std::to_string(i);
+      if (particle < 0 && !out.col(i).allFinite()) particle = i;
     }
+    const auto i = static_cast<Eigen::Index>(particle);
+    const std::string text =
+        std::string("non-finite ") + (damper ? "velocity" : "position") + " of particle " +
+        std::to_string(particle) + " from xpbd's " + (damper ? "damping" : "projection") + " of " +
+        who + " element " + std::to_string(system_.element(j)) + " (particles " + list +
+        "; C = " + num(set.c(q)) + ", ks = " + num(system_.ks(j)) + ", kd = " + num(system_.kd(j)) +
+        ") at x = (" + num(s.x(0, i)) + ", " + num(s.x(1, i)) + "), v = (" + num(s.v(0, i)) + ", " +
+        num(s.v(1, i)) + ")";
+    throw NumericError(NumericError::Kind::NonFinite, text, ctx.step(), s.t, particle, who);
   }
 
   XpbdSettings settings_;
   bool ready_ = false;
   bool any_external_ = false;
   ConstraintSystem system_;
-  ConstraintColouring colouring_;
+  XpbdConstraints compliant_, dampers_;
   std::vector<char> external_;
   std::vector<std::string> external_labels_;
   std::size_t skipped_ = 0;
-  // per constraint in colour order
-  std::vector<uint32_t> ids_;
-  std::vector<uint64_t> elements_;
-  std::vector<std::size_t> slot_;  ///< its particles: particles_[slot_[q] .. slot_[q + 1])
-  std::vector<uint32_t> particles_;
-  std::vector<double> ks_, kd_, lambda_, c_, dc_;
-  Eigen::Matrix2Xd f_, p_, p0_;
+  std::vector<std::size_t> bad_;  ///< per chunk of a colour: its first non-finite position
+  Eigen::Matrix2Xd f_, p_;
 };
 
 }  // namespace

@@ -314,7 +314,8 @@ void Simulation::step() {
 
 // Stages 1 to 5 of Simulation::step for each of n substeps of h / n: substep k starts at
 // t0 + k h / n (the state's time during its stages; the step's bookkeeping sets the end time).
-// The checks see the sum of the velocity changes the drifts made.
+// The checks see the sum of the velocity changes the drifts made, and a state made non-finite
+// in a drift stops the step at that drift.
 void Simulation::substep_stages(StepContext& ctx, Integrator& integrator, double h, uint32_t n,
                                 StepChecks* checks) {
   const double hs = h / static_cast<double>(n);
@@ -326,7 +327,10 @@ void Simulation::substep_stages(StepContext& ctx, Integrator& integrator, double
     if (kick.f != nullptr) pinsim::kick(state_, *kick.f, kick.h);
     if (checks != nullptr) checks->before_substep_drift(state_);
     const std::span<const pinsim_event> contacts = drift(state_, hs);
-    if (checks != nullptr) checks->after_substep_drift(state_);
+    if (checks != nullptr) {
+      const StepFinding found = checks->after_substep_drift(state_);
+      if (found) throw_step_finding(found, t0 + static_cast<double>(k + 1) * hs);
+    }
     if (!contacts.empty())
       correct_impacts(state_, contacts, state_.t, integrator.impact_reference(state_, hs));
     if (integrator.acts_after_drift()) integrator.after_drift(ctx, hs);

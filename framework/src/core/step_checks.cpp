@@ -149,9 +149,26 @@ namespace {
 bool finite(const Eigen::Vector2d& a) { return a.allFinite(); }
 }  // namespace
 
+StepFinding StepChecks::after_substep_drift(const State& s) {
+  drift_change_ += s.v - v_sub_;
+  if (s.x.allFinite() && s.v.allFinite()) return {};
+  StepFinding f;
+  f.what = StepFinding::What::NonFinite;
+  f.v_in.setZero();
+  for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
+    if (s.x.col(i).allFinite() && s.v.col(i).allFinite()) continue;
+    f.particle = i;
+    f.v_in = v_sub_.col(i);
+    f.phase = finite(f.v_in) ? StepFinding::Phase::Drift : StepFinding::Phase::BeforeDrift;
+    break;
+  }
+  return f;
+}
+
 StepFinding StepChecks::non_finite(const State& s) const {
   StepFinding f;
   f.what = StepFinding::What::NonFinite;
+  f.v_in.setZero();
   for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
     if (s.x.col(i).allFinite() && s.v.col(i).allFinite()) continue;
     f.particle = i;

@@ -47,9 +47,13 @@ class StepChecks {
   /// Around a step of several drifts (substeps): begin_drifts before the first, the substep
   /// pair around each drift, end_drifts after the last; check() then takes out the sum of
   /// the velocity changes of all the drifts.
+  /// after_substep_drift also checks that x and v are finite, so a non-finite value made by
+  /// a drift is found in its substep (not in the next substep's stages, which would spread
+  /// it); a finding then has the phase Drift, or BeforeDrift if v entered the drift
+  /// non-finite.
   void begin_drifts(const State& s) { drift_change_.setZero(2, s.v.cols()); }
   void before_substep_drift(const State& s) { copy(s.v, v_sub_); }
-  void after_substep_drift(const State& s) { drift_change_ += s.v - v_sub_; }
+  StepFinding after_substep_drift(const State& s);
   void end_drifts() {
     v_in_.setZero(2, drift_change_.cols());
     v_out_ = drift_change_;

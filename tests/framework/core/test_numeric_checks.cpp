@@ -219,3 +219,68 @@ TEST_CASE("numeric checks: legitimate motion stays inside the growth bound") {
   // The same at RK4's limit h w < 2.83 (h w = 2.8).
   CHECK(run(spring, {"time.dt=0.07", "integrator=rk4"}).exit_code == 0);
 }
+
+namespace {
+
+// xpbd in 4 substeps on three particles (0 pinned) joined by the wrong_constraint fixture's
+// spring (elements [0, 1] and [2, 1]) with `mistake`, gravity as an external force, on
+// `backend`.
+RunResult xpbd_chain(const std::string& mistake, const std::string& backend) {
+  const Scene scene = parse_scene(R"({"plugin_path": [")" PINSIM_TEST_FIXTURE_DIR R"("],
+    "time": {"dt": 0.01, "duration": 0.1}, "integrator": "xpbd",
+    "xpbd": {"substeps": 4, "iterations": 1}, "backend": )" +
+                                      backend + R"(,
+    "particles": [{"x": [0, 0], "pinned": true}, {"x": [1, 0], "v": [1, 0]}, {"x": [2, 0]}],
+    "forces": [{"type": "gravity"},
+               {"type": "wrong_constraint",
+                "library": ")" PINSIM_TEST_FIXTURE_DIR R"(/libfixture_wrong_constraint.so",
+                "params": {"k": 100, "mistake": ")" +
+                                      mistake + R"("}, "elements": [[0, 1], [2, 1]]}]})",
+                                  "scene.json", ".", {});
+  PluginLoader loader(plugin_search_dirs(scene.plugin_path));
+  return run_scene(scene, loader, {});
+}
+
+}  // namespace
+
+TEST_CASE("numeric checks: xpbd blames a NaN made in a constraint projection on its plugin") {
+  // The fixture's C (or dC/dp) of element 1, particles (2, 1), is NaN while its force stays
+  // finite: the projection of that element in the first substep makes the position of its
+  // first particle NaN, and the run names the plugin, the element and the particle there
+  // (before, the NaN reached the velocity and was blamed on the backend's drift).
+  test::FpTrapsOff traps;  // the fixture makes a NaN on purpose
+  for (const std::string mistake : {"nan_c", "nan_gradient"}) {
+    CAPTURE(mistake);
+    const RunResult r = xpbd_chain(mistake, R"("none")");
+    CHECK(r.exit_code == 1);
+    const auto& e = r.summary["error"];
+    CHECK(e["kind"] == "numeric");
+    CHECK(e["numeric"] == "non_finite");
+    CHECK(e["step"] == 1);
+    CHECK(e["particle"] == 2);
+    CHECK(e["plugin"] == "forces[1] 'wrong_constraint'");
+    CHECK_THAT(e["message"].get<std::string>(),
+               StartsWith("non-finite position of particle 2 from xpbd's projection of "
+                          "forces[1] 'wrong_constraint' element 1 (particles 2, 1; C = ") &&
+                   Contains("at x = (2, 0), v = (0, "));
+    CHECK(r.summary["steps"] == 0);
+  }
+}
+
+TEST_CASE("numeric checks: xpbd blames a NaN made in a substep's drift on the backend") {
+  // The fixture backend's 3rd drift (substep 3 of step 1) makes particle 0's v_x NaN; the
+  // check after that drift stops the step there, before substep 4's projection (with a
+  // correct constraint entry) would carry the NaN into positions and blame the constraint.
+  test::FpTrapsOff traps;
+  const RunResult r = xpbd_chain("none", R"({"name": "disc_backend", "params": {"nan_step": 3}})");
+  CHECK(r.exit_code == 1);
+  const auto& e = r.summary["error"];
+  CHECK(e["numeric"] == "non_finite");
+  CHECK(e["step"] == 1);
+  CHECK(e["particle"] == 0);
+  CHECK(e["plugin"] == "backend 'disc_backend'");
+  CHECK_THAT(e["message"].get<std::string>(),
+             StartsWith("non-finite state of particle 0 after the drift by backend "
+                        "'disc_backend': x = ") &&
+                 Contains("; it entered the drift finite, at v = (0, "));
+}

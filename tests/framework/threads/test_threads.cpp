@@ -185,6 +185,19 @@ TEST_CASE("threads: xpbd on the spring grid, 1, 2 and 3 threads alike") {
   CHECK(r.summary["solver"]["colours"].get<uint64_t>() >= 4);
 }
 
+// The same with the shear springs as pure dampers (ks = 0): xpbd solves them on the
+// velocities, colour by colour in chunks, before the projection.
+TEST_CASE("threads: xpbd's pure dampers on the spring grid, 1, 2 and 3 threads alike") {
+  const std::string scene = write_scene(spring_grid(), "springs");
+  const std::string extra =
+      "--integrator xpbd --set xpbd.substeps=3 --set time.duration=0.005 "
+      "--set forces[2].params.ks=0 --set forces[2].params.kd=0.5";
+  same_for_1_2_3(scene, extra);
+  const Run r = run(scene, 2, extra);
+  CHECK(r.summary["solver"]["dampers"].get<uint64_t>() > 70000);
+  CHECK(r.summary["solver"]["damper_colours"].get<uint64_t>() >= 2);
+}
+
 TEST_CASE("threads: the Box2D backend runs with threads (serially inside), same bits") {
   same_for_1_2_3(configs + "/pinball.json", "--backend box2d --set time.duration=1");
 }

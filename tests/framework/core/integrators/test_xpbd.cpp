@@ -210,6 +210,62 @@ TEST_CASE(
   CHECK(stats["constraints"] == 0);
 }
 
+TEST_CASE("xpbd: a pure damper (ks = 0, kd > 0) is backward Euler on the velocities") {
+  // A two-mass dashpot along x: m0 = 1 at x = 0 moving at +1, m1 = 3 at x = 1 moving at -1,
+  // one damped_spring with ks = 0 and kd = 2 (f_0 = -kd J_0 (J v), J = dR/dp, R = |p0 - p1|).
+  // The closing speed u = J v = dR/dt obeys du/dt = -kd W u, W = 1/m0 + 1/m1 = 4/3 (it is the
+  // relative velocity along the line, and the damper acts only along it), so continuously
+  // u(t) = u0 exp(-kd W t), u0 = -2. The damper's backward Euler step of h multiplies u by
+  // exactly 1 / (1 + h kd W) (the velocity update in xpbd_constraints.cpp), and momentum
+  // m0 v0 + m1 v1 = -2 stays. Over 0.3 s the bodies close by 2 (1 - e^-0.8) / (8/3) = 0.41 < 1.
+  const double kd = 2.0, W = 4.0 / 3.0, T = 0.3, u0 = -2.0;
+  PluginLoader loader(plugin_search_dirs());
+  auto run = [&](double h, uint32_t substeps) {
+    json doc = pair_scene(0.0, kd, 1.0, {1.0, 0.0}, {-1.0, 0.0}, h, substeps, 1, 1.0, 3.0);
+    doc["particles"][0]["v"] = {1.0, 0.0};
+    doc["time"]["duration"] = T;
+    Simulation sim(make_scene(doc), loader);
+    for (uint64_t i = 0; i < sim.scene().steps(); ++i) sim.step();
+    const json stats = sim.integrator_stats();
+    CHECK(stats["dampers"] == 1);
+    CHECK(stats["constraints"] == 0);
+    const State& s = sim.state();
+    CHECK(std::abs(s.v(0, 0) + 3.0 * s.v(0, 1) + 2.0) < 1e-14);  // momentum
+    CHECK(s.v(1, 0) == 0.0);
+    CHECK(s.v(1, 1) == 0.0);
+    return s.v(0, 1) - s.v(0, 0);  // u = dR/dt = v1 - v0 along x (p1 is right of p0)
+  };
+  // the discrete closed form, 30 steps of 2 substeps
+  const double h = 0.01;
+  const double discrete = u0 * std::pow(1.0 + 0.5 * h * kd * W, -60.0);
+  CHECK(std::abs(run(h, 2) - discrete) < 1e-13);
+  // the continuous limit: first order in h (backward Euler's error ~ (kd W)^2 h T / 2 |u|)
+  const double exact = u0 * std::exp(-kd * W * T);
+  const double e3 = std::abs(run(1e-3, 1) - exact), e4 = std::abs(run(1e-4, 1) - exact);
+  CHECK(e4 < 2e-4 * std::abs(exact));
+  CHECK(e3 / e4 > 8.0);
+  CHECK(e3 / e4 < 12.0);
+}
+
+TEST_CASE("xpbd: a stiff pure damper at a large step stays stable and damps monotonically") {
+  // kd = 1e6 at h = 1/60: h kd W = 2.2e4, far beyond an explicit damper's limit h kd W < 2;
+  // backward Euler multiplies the closing speed by 1 / (1 + 2.2e4) per step.
+  PluginLoader loader(plugin_search_dirs());
+  json doc = pair_scene(0.0, 1e6, 1.0, {1.0, 0.0}, {-1.0, 0.0}, 1.0 / 60.0, 1, 1, 1.0, 3.0);
+  doc["particles"][0]["v"] = {1.0, 0.0};
+  Simulation sim(make_scene(doc), loader);
+  double last = 2.0;
+  for (int i = 0; i < 10; ++i) {
+    sim.step();
+    const double u = std::abs(sim.state().v(0, 1) - sim.state().v(0, 0));
+    REQUIRE((u <= last || u < 1e-15));  // down to the rounding of v (|v| ~ 0.5)
+    last = u;
+  }
+  CHECK(last < 1e-15);
+  // both move with the centre of mass, -2 / 4
+  CHECK(std::abs(sim.state().v(0, 0) + 0.5) < 1e-12);
+}
+
 TEST_CASE("xpbd: every constraint plugin runs from one scene (blob with area and bending)") {
   // linear_spring, damped_spring, bending and area_pressure as constraints at dt = 1/60, a
   // stiff ring blob falling onto the floor: stays finite, keeps its area within 5%.
