@@ -19,7 +19,7 @@ PluginInfo SdfBackend::info() {
       "collision by sphere tracing sdf - r along each particle's path, impulses v' = v - "
       "(1+e)(v_rel.n)n at the time of impact, scripted flippers and sliders, optional "
       "particle-particle contacts.";
-  i.capabilities = PINSIM_CAP_PARTICLE_CONTACT;
+  i.capabilities = PINSIM_CAP_PARTICLE_CONTACT | PINSIM_CAP_DIFFERENTIABLE;
   i.params.push_back(real("depth_min", 1e-5)
                          .min(0.0, true)
                          .units("length")
@@ -122,6 +122,7 @@ namespace {
   const auto& moving = field_.moving();
   bool first = true;
   bool in_band = false;  ///< the last query was in the contact band
+  bool entered = false;  ///< the last move was a sphere-tracing step from outside the band
   while (remaining > 0.0) {
     if (b.iterations >= max_iterations_ || b.collisions >= max_collisions_) {
       // Fallback: for the rest of the step the particle rides rigidly with the nearest
@@ -163,6 +164,7 @@ namespace {
       t += step;
       remaining -= step;
       first = false;
+      entered = true;
       continue;
     }
     first = false;
@@ -176,7 +178,10 @@ namespace {
     double vn = vr.dot(n);
     // approaching, beyond rounding of an earlier impulse
     auto approaching = [&] { return vn < -1e-12 * (v.norm() + u.norm()); };
+    bool toi = entered;  // the impulse's time is a root of phi = offset (drift_recorder.hpp)
+    entered = false;
     if (approaching() && d > depth_min_) {
+      toi = true;
       // The march stopped up to tol above the offset: move on to the time of impact by
       // the linear estimate (d - depth_min) / -vn, never more than the safe step d / L.
       const double s = std::min({(d - depth_min_) / -vn, d / lip, remaining});
@@ -202,6 +207,8 @@ namespace {
         if (vtn > 0.0) dv -= std::min(m.friction * jn, vtn) / vtn * vt;
       }
       if (!resting && m.kick > 0.0) dv += m.kick * n;
+      if (tape_.on())
+        tape_.impact(field_, i, k, toi, t, x, v, v + dv, r + depth_min_, resting, !resting);
       v += dv;
       ++b.collisions;
       if (!resting) ev.emit(impact_event(i, nn.k, t, pc, n, vn, (v - u).dot(n)));
@@ -212,6 +219,8 @@ namespace {
       }
       continue;
     }
+    if (tape_.on() && !(vn > 1e-6 * (v.norm() + u.norm())))  // moving along the surface
+      tape_.finding(PINSIM_FINDING_TOUCH, i, nn.k, t, vn);
     double step = std::max(dc, depth_min_) / lip;
     if (step < remaining) step = std::max(step, slide_step(k, x, v, r, remaining, lip));
     if (step >= remaining) {
@@ -235,6 +244,8 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
   st.contacts += static_cast<uint64_t>(b.collisions - before.collisions);
   st.cap_hits += end == MarchEnd::capped;
   st.skipped += end == MarchEnd::skipped;
+  if (end == MarchEnd::capped && tape_.on())
+    tape_.finding(PINSIM_FINDING_CAP_HIT, i, -1, t, b.collisions);
   return end != MarchEnd::capped;
 }
 
@@ -330,6 +341,9 @@ void SdfBackend::schedule_pairs(const MutableState& s, double dt, EventSink& ev)
     const double wi = s.inv_mass[i], wj = s.inv_mass[j];
     const double jn = -(1.0 + particle_e_) * vn / (wi + wj);
     const Vec2 dvi = jn * wi * nrm, dvj = -jn * wj * nrm;
+    if (tape_.on())
+      tape_.pair(i, j, tau, xr[i], vc[i], tr[i], xr[j], vc[j], tr[j], s.radius[i] + s.radius[j], wi,
+                 wj, particle_e_);
     xr[i] = pi;
     xr[j] = pj;
     tr[i] = tr[j] = tau;
@@ -380,8 +394,10 @@ void SdfBackend::schedule_pairs(const MutableState& s, double dt, EventSink& ev)
   ++st.particle_steps;
   Budget b;
   double done = 0.0;
-  for (const Change& c : changes_[i]) {
+  for (std::size_t k = 0; k < changes_[i].size(); ++k) {
+    const Change& c = changes_[i][k];
     march(i, x, v, r, t0 + done, c.tau - done, b, st, ev);
+    if (tape_.on()) tape_.change(i, k, c.tau, x, v, v + c.dv);
     v += c.dv;
     done = c.tau;
   }
@@ -458,15 +474,17 @@ std::size_t SdfBackend::too_fast(const MutableState& s, double dt, bool threads)
 void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   if (!(dt > 0.0)) return;
   const double t0 = s.t;
+  if (tape_.on()) tape_.begin(s, dt);
   // The obstacles' motion over the step, then the pair contacts within it.
   const ObstacleMotion motion = bound_moving_obstacles(t0, dt);
   rest_.begin_step(motion.still, motion.same_segments);
   const bool pairs = particle_contacts_ && s.n > 1;
   if (pairs) schedule_pairs(s, dt, ev);
+  if (!pairs && tape_.on()) changes_.assign(s.n, {});  // recording: every particle marched
   // (beyond the limit the march cannot resolve the step: refuse, never freeze silently;
   // checked for every particle before any moves, so a refused step changes nothing; in fixed
   // chunks on threads for large states, the first offender in particle order named)
-  const bool threads = s.n >= kParallelParticles && available_threads() > 1;
+  const bool threads = !tape_.on() && s.n >= kParallelParticles && available_threads() > 1;
   if (const std::size_t i = too_fast(s, dt, threads); i < s.n)
     throw Error("particle " + std::to_string(i) + " at t = " + num(t0) + " s: velocity (" +
                 num(s.v(0, i)) + ", " + num(s.v(1, i)) +
@@ -480,7 +498,7 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   rest_.resize(s.n);
   auto particle = [&](std::size_t i, SdfStats& st, EventSink& sink) {
     if (!(s.inv_mass[i] > 0.0)) return;  // pinned particles do not move
-    if (pairs)
+    if (pairs || tape_.on())
       march_with_changes(i, s, t0, dt, st, sink);
     else
       march_or_reuse(i, s, t0, dt, st, sink);

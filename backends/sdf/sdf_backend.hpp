@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "drift_recorder.hpp"
 #include "rest_cache.hpp"
 #include "sdf_stats.hpp"
 
@@ -29,6 +30,9 @@ class SdfBackend : public FieldBackend {
   /// reset, so the run continues bit-identical to a backend created with the event in its
   /// scene's "inputs". Throws Error naming an unknown input.
   void input(const std::string& name, bool pressed, double t);
+  /// Report every drift to `sink` for the adjoint of a run (null: stop); while recording,
+  /// particles are marched one by one without the rest cache (the same bits).
+  void record_drift(const pinsim_drift_sink* sink) { tape_.set(sink); }
   const SdfStats& stats() const { return stats_; }
   double depth_min() const { return depth_min_; }
   double march_tolerance() const { return tol_; }
@@ -86,7 +90,8 @@ class SdfBackend : public FieldBackend {
   std::vector<std::size_t> timeline_hint_;  ///< per obstacle: its timeline's segment last step
   std::vector<std::size_t> last_segment_;   ///< per obstacle: its segment the step before
   std::vector<std::vector<Change>> changes_;
-  RestCache rest_;  ///< particle steps that ended at rest
+  RestCache rest_;      ///< particle steps that ended at rest
+  DriftRecorder tape_;  ///< reports drifts while the host records them
   SdfStats stats_;
   /// Particles from which advance() marches them on threads when there are threads: below
   /// it the serial loop is as fast (bench/threads, docs/threads.md).
