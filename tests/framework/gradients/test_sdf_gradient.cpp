@@ -161,8 +161,7 @@ TEST_CASE("sdf gradient: a resting contact and materials without a recording bac
                     Catch::Contains("expected obstacles[K].material.restitution"));
 }
 
-TEST_CASE("sdf gradient: a ball hit by a rotating flipper against whole runs",
-          "[gradients][sdf]") {
+TEST_CASE("sdf gradient: a ball hit by a rotating flipper against whole runs", "[gradients][sdf]") {
   // The flipper (pivot at the origin) is pressed at t = 0.03 s and turns up at 25 rad/s; the
   // ball meets it at t = 0.048 s while it turns: the impulse uses the flipper's velocity at the
   // contact point, and the time of impact, the normal and that velocity all move with the
@@ -190,4 +189,24 @@ TEST_CASE("sdf gradient: a ball hit by a rotating flipper against whole runs",
   CHECK(r.impacts == 1);
   for (const char* loss : {"final:0:x", "final:0:y", "final:0:vx"})
     check_against_runs(file, {}, loss, wrt, "", 1e-6, 1e-5);
+}
+
+TEST_CASE("sdf gradient: capped marches and sliding contacts are said", "[gradients][sdf]") {
+  const std::string box = PINSIM_SOURCE_DIR "/configs/empty_box.json";
+  // at 50 units/s a step of 0.05 s crosses the box (0.9 wide) several times, with one impulse
+  // allowed per step
+  const GradientReport cap = gradient(box,
+                                      {"time.dt=0.05", "time.duration=0.2",
+                                       "backend.params.max_collisions=1", "particles[0].v=[50,0]"},
+                                      "final:0:x", {"particles[0].v"}, "");
+  REQUIRE(cap.findings_count > 0);
+  CHECK(cap.to_json()["findings"][0]["kind"] == "cap_hit");
+  CHECK_FALSE(cap.to_json()["differentiable"].get<bool>());
+  // a ball sliding along the box's top wall inside the contact band (offset 0.5 - r -
+  // depth_min = 0.449999): a nearby run may hit it
+  const GradientReport slide =
+      gradient(box, {"particles[0].x=[0,0.44999]"}, "final:0:x", {"particles[0].v"}, "");
+  REQUIRE(slide.findings_count > 0);
+  CHECK(slide.to_json()["findings"][0]["kind"] == "touch");
+  CHECK(slide.findings.size() <= GradientReport::kMaxFindings);
 }
