@@ -202,10 +202,10 @@ TEST_CASE("sdf gradient: capped marches and sliding contacts are said", "[gradie
   REQUIRE(cap.findings_count > 0);
   CHECK(cap.to_json()["findings"][0]["kind"] == "cap_hit");
   CHECK_FALSE(cap.to_json()["differentiable"].get<bool>());
-  // a ball sliding along the box's top wall inside the contact band (offset 0.5 - r -
-  // depth_min = 0.449999): a nearby run may hit it
+  // a ball sliding along the box's top wall inside the contact band (the offset is 0.5 - r -
+  // depth_min = 0.449999, the band 1e-7 above it): a nearby run may hit the wall
   const GradientReport slide =
-      gradient(box, {"particles[0].x=[0,0.44999]"}, "final:0:x", {"particles[0].v"}, "");
+      gradient(box, {"particles[0].x=[0,0.44999895]"}, "final:0:x", {"particles[0].v"}, "");
   REQUIRE(slide.findings_count > 0);
   CHECK(slide.to_json()["findings"][0]["kind"] == "touch");
   CHECK(slide.findings.size() <= GradientReport::kMaxFindings);
