@@ -14,11 +14,13 @@ namespace {
 /// per chunk of a wave (any value gives the same bits).
 constexpr std::size_t kParticles = 1024;
 constexpr std::size_t kCells = 512;
-constexpr std::size_t kWaveHits = 256;
+constexpr std::size_t kWaveHits = 64;
 /// Hits from which a wave runs on threads: below it one thread resolves it faster than
 /// threads can be woken.
-constexpr std::size_t kParallelWave = 1024;
+constexpr std::size_t kParallelWave = 256;
 constexpr uint32_t kNoCell = ~0u;
+/// Hits per task of the islands' resolution (a task ends at the first island boundary past it).
+constexpr uint32_t kIslandTask = 256;
 }  // namespace
 
 // Pair contacts in four stages:
@@ -277,6 +279,7 @@ void PairContacts::resolve(const MutableState& s, double dt, double e, bool thre
     for (std::size_t h = 0; h < hits; ++h) resolve_hit(s, h, dt, e);
     return;
   }
+  if (resolve_islands(s, dt, e)) return;
   level_start_.assign(static_cast<std::size_t>(levels) + 1, 0);
   for (std::size_t h = 0; h < hits; ++h) ++level_start_[level_of_[h] + 1];
   for (std::size_t l = 0; l < levels; ++l) level_start_[l + 1] += level_start_[l];
@@ -297,6 +300,54 @@ void PairContacts::resolve(const MutableState& s, double dt, double e, bool thre
     else
       wave(0, 0, count);
   }
+}
+
+// Islands: the connected parts of the contact graph (particles joined by hits), by union-find
+// with the smallest particle index as each part's root. Hits of different islands share no
+// particle, so each island's hits run in their order on one thread, islands side by side:
+// the hits in order of their island's root (a stable counting sort: in order within each),
+// cut into tasks at island boundaries once a task holds kIslandTask hits (fixed by the hits,
+// not by the threads). Used when no island holds more than half of the hits (else the waves
+// share the work better); false if not used.
+bool PairContacts::resolve_islands(const MutableState& s, double dt, double e) {
+  const std::size_t n = s.n, hits = hits_.size();
+  std::vector<uint32_t>& parent = parent_;
+  parent.resize(n);
+  for (std::size_t i = 0; i < n; ++i) parent[i] = static_cast<uint32_t>(i);
+  auto find = [&](uint32_t a) {
+    while (parent[a] != a) a = parent[a] = parent[parent[a]];
+    return a;
+  };
+  for (const Hit& h : hits_) {
+    const uint32_t a = find(h.i), b = find(h.j);
+    if (a != b) parent[std::max(a, b)] = std::min(a, b);
+  }
+  std::vector<uint32_t>& start = fill_;
+  start.assign(n + 1, 0);
+  root_of_.resize(hits);
+  for (std::size_t h = 0; h < hits; ++h) {
+    root_of_[h] = find(hits_[h].i);
+    ++start[root_of_[h] + 1];
+  }
+  uint32_t largest = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    largest = std::max(largest, start[i + 1]);
+    start[i + 1] += start[i];
+  }
+  counts_.largest_island = largest;
+  if (2 * static_cast<std::size_t>(largest) > hits) return false;
+  by_level_.resize(hits);
+  // tasks: island boundaries after every kIslandTask hits or more
+  task_start_.assign(1, 0);
+  for (std::size_t i = 0; i < n; ++i)
+    if (start[i + 1] - task_start_.back() >= kIslandTask) task_start_.push_back(start[i + 1]);
+  if (task_start_.back() != hits) task_start_.push_back(static_cast<uint32_t>(hits));
+  for (std::size_t h = 0; h < hits; ++h) by_level_[start[root_of_[h]]++] = static_cast<uint32_t>(h);
+  for_chunks(task_start_.size() - 1, 1, [&](std::size_t t, std::size_t, std::size_t) {
+    for (uint32_t k = task_start_[t]; k < task_start_[t + 1]; ++k)
+      resolve_hit(s, by_level_[k], dt, e);
+  });
+  return true;
 }
 
 void PairContacts::collect(const MutableState& s, EventSink& ev) {

@@ -20,10 +20,11 @@ class PairContacts {
   };
   /// What the last schedule() found and did (for tests and benchmarks).
   struct Counts {
-    std::size_t candidates = 0;  ///< pairs whose swept boxes overlap
-    std::size_t hits = 0;        ///< of them, pairs that meet within the step at first sight
-    std::size_t impulses = 0;    ///< impulses applied (events emitted)
-    std::size_t levels = 0;      ///< waves of hits sharing no particle (see schedule())
+    std::size_t candidates = 0;      ///< pairs whose swept boxes overlap
+    std::size_t hits = 0;            ///< of them, pairs that meet within the step at first sight
+    std::size_t impulses = 0;        ///< impulses applied (events emitted)
+    std::size_t levels = 0;          ///< waves of hits sharing no particle (see schedule())
+    std::size_t largest_island = 0;  ///< hits of the largest island (on threads only)
   };
 
   /// The step's pair contacts of s over [s.t, s.t + dt] with restitution e: every particle's
@@ -70,6 +71,7 @@ class PairContacts {
   void find_hits(const MutableState& s, double dt, bool threads);
   void order_hits(bool threads);
   void resolve(const MutableState& s, double dt, double e, bool threads);
+  bool resolve_islands(const MutableState& s, double dt, double e);
   void collect(const MutableState& s, EventSink& ev);
   /// Time of impact after tau0 of i and j moving linearly from their reference states.
   bool toi(const MutableState& s, uint32_t i, uint32_t j, double tau0, double dt,
@@ -89,7 +91,10 @@ class PairContacts {
   std::vector<uint32_t> level_of_;         ///< per hit: its wave
   std::vector<uint32_t> last_level_;       ///< per particle: wave of its last hit so far
   std::vector<uint32_t> level_start_;      ///< per wave: first entry in by_level_
-  std::vector<uint32_t> by_level_;         ///< hits by wave, in order within each
+  std::vector<uint32_t> by_level_;         ///< hits by wave or island, in order within each
+  std::vector<uint32_t> parent_;           ///< per particle: union-find parent
+  std::vector<uint32_t> root_of_;          ///< per hit: its island's root particle
+  std::vector<uint32_t> task_start_;       ///< per island task: first entry in by_level_
   std::vector<std::size_t> change_start_;  ///< per particle (+1): first entry in changes_
   std::vector<Change> changes_;
   std::vector<uint32_t> fill_;             ///< counting sorts' next free entries
