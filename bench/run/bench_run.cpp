@@ -440,6 +440,9 @@ int main(int argc, char** argv) {
     o.work = tmpl;
   }
   fs::create_directories(o.work);
+  // the multiball scene lists 100,000 particles: above the scene reader's default limit of
+  // 1,000,000 JSON values (kept if the caller set one)
+  setenv("PINSIM_JSON_MAX_VALUES", "20000000", 0);
   {
     double rss = 0.0;
     spawn(o, {"run", "--help"}, o.work / "help.log", rss);
