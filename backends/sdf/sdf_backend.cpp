@@ -19,7 +19,7 @@ PluginInfo SdfBackend::info() {
       "collision by sphere tracing sdf - r along each particle's path, impulses v' = v - "
       "(1+e)(v_rel.n)n at the time of impact, scripted flippers and sliders, optional "
       "particle-particle contacts.";
-  i.capabilities = PINSIM_CAP_PARTICLE_CONTACT;
+  i.capabilities = PINSIM_CAP_PARTICLE_CONTACT | PINSIM_CAP_DIFFERENTIABLE;
   i.params.push_back(real("depth_min", 1e-5)
                          .min(0.0, true)
                          .units("length")
@@ -122,6 +122,7 @@ namespace {
   const auto& moving = field_.moving();
   bool first = true;
   bool in_band = false;  ///< the last query was in the contact band
+  bool entered = false;  ///< the last move was a sphere-tracing step from outside the band
   while (remaining > 0.0) {
     if (b.iterations >= max_iterations_ || b.collisions >= max_collisions_) {
       // Fallback: for the rest of the step the particle rides rigidly with the nearest
@@ -163,6 +164,7 @@ namespace {
       t += step;
       remaining -= step;
       first = false;
+      entered = true;
       continue;
     }
     first = false;
@@ -176,7 +178,10 @@ namespace {
     double vn = vr.dot(n);
     // approaching, beyond rounding of an earlier impulse
     auto approaching = [&] { return vn < -1e-12 * (v.norm() + u.norm()); };
+    bool toi = entered;  // the impulse's time is a root of phi = offset (drift_recorder.hpp)
+    entered = false;
     if (approaching() && d > depth_min_) {
+      toi = true;
       // The march stopped up to tol above the offset: move on to the time of impact by
       // the linear estimate (d - depth_min) / -vn, never more than the safe step d / L.
       const double s = std::min({(d - depth_min_) / -vn, d / lip, remaining});
@@ -202,6 +207,8 @@ namespace {
         if (vtn > 0.0) dv -= std::min(m.friction * jn, vtn) / vtn * vt;
       }
       if (!resting && m.kick > 0.0) dv += m.kick * n;
+      if (tape_.on())
+        tape_.impact(field_, i, k, toi, t, x, v, v + dv, r + depth_min_, resting, !resting);
       v += dv;
       ++b.collisions;
       if (!resting) ev.emit(impact_event(i, nn.k, t, pc, n, vn, (v - u).dot(n)));
@@ -212,6 +219,8 @@ namespace {
       }
       continue;
     }
+    if (tape_.on() && !(vn > 1e-6 * (v.norm() + u.norm())))  // moving along the surface
+      tape_.finding(PINSIM_FINDING_TOUCH, i, nn.k, t, vn);
     double step = std::max(dc, depth_min_) / lip;
     if (step < remaining) step = std::max(step, slide_step(k, x, v, r, remaining, lip));
     if (step >= remaining) {
@@ -235,6 +244,8 @@ bool SdfBackend::march(std::size_t i, Vec2& x, Vec2& v, double r, double t, doub
   st.contacts += static_cast<uint64_t>(b.collisions - before.collisions);
   st.cap_hits += end == MarchEnd::capped;
   st.skipped += end == MarchEnd::skipped;
+  if (end == MarchEnd::capped && tape_.on())
+    tape_.finding(PINSIM_FINDING_CAP_HIT, i, -1, t, b.collisions);
   return end != MarchEnd::capped;
 }
 
@@ -254,104 +265,15 @@ double SdfBackend::slide_step(std::size_t k, const Vec2& x, const Vec2& v, doubl
   return c > 0.0 ? std::min(remaining, c / lip) : 0.0;
 }
 
-// Particle-particle contacts, one pass per step: candidate pairs by sweep and prune over
-// the boxes swept during the step; for each pair the time of impact tau of two discs in
-// linear motion, |dx + dv tau| = r_i + r_j, i.e. a tau^2 + 2 b tau + c = 0 with a = dv.dv,
-// b = dx.dv, c = dx.dx - (r_i + r_j)^2, tau = (-b - sqrt(b^2 - a c)) / a. Pairs are handled in
-// order of tau with the velocities as updated by earlier pairs; the impulse
-// J = -(1 + e) vn / (w_i + w_j) (w = inverse masses) becomes a velocity change at tau that
-// the obstacle march applies on the way. Obstacle contacts inside the step do not
-// re-schedule pairs.
-void SdfBackend::schedule_pairs(const MutableState& s, double dt, EventSink& ev) {
-  const std::size_t n = s.n;
-  changes_.assign(n, {});
-  struct Box {
-    double x0, x1, y0, y1;
-    uint32_t i;
-  };
-  std::vector<Box> boxes(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const Vec2 a = s.x.col(i), b = a + (s.inv_mass[i] > 0.0 ? Vec2(dt * s.v.col(i)) : Vec2::Zero());
-    const double r = s.radius[i];
-    boxes[i] = {std::min(a.x(), b.x()) - r, std::max(a.x(), b.x()) + r, std::min(a.y(), b.y()) - r,
-                std::max(a.y(), b.y()) + r, static_cast<uint32_t>(i)};
-  }
-  std::sort(boxes.begin(), boxes.end(),
-            [](const Box& a, const Box& b) { return a.x0 < b.x0 || (a.x0 == b.x0 && a.i < b.i); });
-  std::vector<Vec2> xr(n), vc(n);
-  std::vector<double> tr(n, 0.0);
-  for (std::size_t i = 0; i < n; ++i) {
-    xr[i] = s.x.col(i);
-    vc[i] = s.inv_mass[i] > 0.0 ? Vec2(s.v.col(i)) : Vec2::Zero();
-  }
-  // time of impact after tau0 for i and j moving linearly from their reference states
-  auto toi = [&](uint32_t i, uint32_t j, double tau0, double& tau) {
-    const Vec2 pi = xr[i] + vc[i] * (tau0 - tr[i]), pj = xr[j] + vc[j] * (tau0 - tr[j]);
-    const Vec2 dx = pi - pj, dv = vc[i] - vc[j];
-    const double rr = s.radius[i] + s.radius[j];
-    const double a = dv.squaredNorm(), b = dx.dot(dv), c = dx.squaredNorm() - rr * rr;
-    if (b >= 0.0) return false;  // not approaching
-    if (c <= 0.0) {
-      tau = tau0;
-      return true;
-    }
-    const double disc = b * b - a * c;
-    if (disc < 0.0) return false;
-    tau = tau0 + c / (-b + std::sqrt(disc));  // = (-b - sqrt(disc)) / a, without cancellation
-    return tau <= dt;
-  };
-  struct Hit {
-    double tau;
-    uint32_t i, j;
-  };
-  std::vector<Hit> hits;
-  for (std::size_t a = 0; a < n; ++a) {
-    for (std::size_t b = a + 1; b < n && boxes[b].x0 <= boxes[a].x1; ++b) {
-      if (boxes[b].y0 > boxes[a].y1 || boxes[b].y1 < boxes[a].y0) continue;
-      uint32_t i = std::min(boxes[a].i, boxes[b].i), j = std::max(boxes[a].i, boxes[b].i);
-      if (s.inv_mass[i] == 0.0 && s.inv_mass[j] == 0.0) continue;
-      double tau = 0.0;
-      if (toi(i, j, 0.0, tau)) hits.push_back({tau, i, j});
-    }
-  }
-  std::sort(hits.begin(), hits.end(), [](const Hit& a, const Hit& b) {
-    return a.tau < b.tau || (a.tau == b.tau && (a.i < b.i || (a.i == b.i && a.j < b.j)));
-  });
-  for (const Hit& h : hits) {
-    const uint32_t i = h.i, j = h.j;
-    double tau = 0.0;
-    if (!toi(i, j, std::max(tr[i], tr[j]), tau)) continue;
-    const Vec2 pi = xr[i] + vc[i] * (tau - tr[i]), pj = xr[j] + vc[j] * (tau - tr[j]);
-    const Vec2 dx = pi - pj;
-    const double l = dx.norm();
-    const Vec2 nrm = l > 0.0 ? Vec2(dx / l) : Vec2(0.0, 1.0);
-    const double vn = (vc[i] - vc[j]).dot(nrm);
-    if (vn >= 0.0) continue;
-    const double wi = s.inv_mass[i], wj = s.inv_mass[j];
-    const double jn = -(1.0 + particle_e_) * vn / (wi + wj);
-    const Vec2 dvi = jn * wi * nrm, dvj = -jn * wj * nrm;
-    xr[i] = pi;
-    xr[j] = pj;
-    tr[i] = tr[j] = tau;
-    vc[i] += dvi;
-    vc[j] += dvj;
-    if (wi > 0.0) changes_[i].push_back({tau, dvi});
-    if (wj > 0.0) changes_[j].push_back({tau, dvj});
-    ++stats_.pair_contacts;
-    pinsim_event e{};
-    e.t = s.t + tau;
-    e.particle = i;
-    e.obstacle = -1;
-    e.other = j;
-    const Vec2 pt = pj + s.radius[j] * nrm;
-    e.point[0] = pt.x();
-    e.point[1] = pt.y();
-    e.normal[0] = nrm.x();
-    e.normal[1] = nrm.y();
-    e.vn_before = vn;
-    e.vn_after = (vc[i] - vc[j]).dot(nrm);
-    ev.emit(e);
-  }
+// Particle-particle contacts, one pass per step (pair_contacts.cpp): candidate pairs by a
+// grid over the boxes swept during the step; for each pair the time of impact tau of two
+// discs in linear motion; pairs handled in order of tau with the velocities as updated by
+// earlier pairs, each impulse J = -(1 + e) vn / (w_i + w_j) (w = inverse masses) becoming a
+// velocity change at tau that the obstacle march applies on the way. Obstacle contacts
+// inside the step do not re-schedule pairs.
+void SdfBackend::schedule_pairs(const MutableState& s, double dt, bool threads, EventSink& ev) {
+  pairs_.schedule(s, dt, particle_e_, threads, ev, tape_.on() ? &tape_ : nullptr);
+  stats_.pair_contacts += pairs_.counts().impulses;
 }
 
 // Speed bounds of the moving obstacles over the step (each timeline keeps its segment as a
@@ -371,17 +293,23 @@ void SdfBackend::schedule_pairs(const MutableState& s, double dt, EventSink& ev)
 }
 
 // Particle i over the step, marched between its pair contacts' velocity changes with one
-// budget for the whole step.
+// budget for the whole step; without any, as march_or_reuse (the same march).
 [[gnu::always_inline]] inline void SdfBackend::march_with_changes(std::size_t i, MutableState& s,
                                                                   double t0, double dt,
                                                                   SdfStats& st, EventSink& ev) {
+  if (!pairs_.changed(i) && !tape_.on()) {  // recording: every particle marched
+    march_or_reuse(i, s, t0, dt, st, ev);
+    return;
+  }
   Vec2 x = s.x.col(i), v = s.v.col(i);
   const double r = s.radius[i];
   ++st.particle_steps;
   Budget b;
   double done = 0.0;
-  for (const Change& c : changes_[i]) {
+  std::size_t k = 0;
+  for (const PairContacts::Change& c : pairs_.changes(i)) {
     march(i, x, v, r, t0 + done, c.tau - done, b, st, ev);
+    if (tape_.on()) tape_.change(i, k++, c.tau, x, v, v + c.dv);
     v += c.dv;
     done = c.tau;
   }
@@ -458,29 +386,34 @@ std::size_t SdfBackend::too_fast(const MutableState& s, double dt, bool threads)
 void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   if (!(dt > 0.0)) return;
   const double t0 = s.t;
+  if (tape_.on()) tape_.begin(s, dt);
   // The obstacles' motion over the step, then the pair contacts within it.
   const ObstacleMotion motion = bound_moving_obstacles(t0, dt);
   rest_.begin_step(motion.still, motion.same_segments);
-  const bool pairs = particle_contacts_ && s.n > 1;
-  if (pairs) schedule_pairs(s, dt, ev);
   // (beyond the limit the march cannot resolve the step: refuse, never freeze silently;
-  // checked for every particle before any moves, so a refused step changes nothing; in fixed
-  // chunks on threads for large states, the first offender in particle order named)
-  const bool threads = s.n >= kParallelParticles && available_threads() > 1;
+  // checked for every particle before any moves or meets another, so a refused step changes
+  // nothing; in fixed chunks on threads for large states, the first offender in particle
+  // order named; while recording drifts, one by one in particle order)
+  const bool threads = !tape_.on() && s.n >= kParallelParticles && available_threads() > 1;
   if (const std::size_t i = too_fast(s, dt, threads); i < s.n)
     throw Error("particle " + std::to_string(i) + " at t = " + num(t0) + " s: velocity (" +
                 num(s.v(0, i)) + ", " + num(s.v(1, i)) +
                 ") travels beyond the sdf backend's limit of 1e+09 per step "
                 "(backends/sdf/README.md, Limits)");
+  const bool pairs = particle_contacts_ && s.n > 1;
+  if (pairs)
+    schedule_pairs(s, dt, threads, ev);
+  else if (tape_.on())
+    pairs_.clear(s.n);  // recording: every particle through march_with_changes
   // Each particle with finite mass along its path, contacts resolved on the way. Particles
-  // are independent here (pair contacts are fixed above as velocity changes in changes_,
+  // are independent here (pair contacts are fixed above as velocity changes in pairs_,
   // the rest cache keeps one record set per particle, the field is only read), so fixed
   // chunks of them may run on threads; each chunk counts and collects its events apart, and
   // they are added and emitted in chunk order: the serial order, for any thread count.
   rest_.resize(s.n);
   auto particle = [&](std::size_t i, SdfStats& st, EventSink& sink) {
     if (!(s.inv_mass[i] > 0.0)) return;  // pinned particles do not move
-    if (pairs)
+    if (pairs || tape_.on())
       march_with_changes(i, s, t0, dt, st, sink);
     else
       march_or_reuse(i, s, t0, dt, st, sink);

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "drift_recorder.hpp"
+#include "pair_contacts.hpp"
 #include "rest_cache.hpp"
 #include "sdf_stats.hpp"
 
@@ -29,7 +31,12 @@ class SdfBackend : public FieldBackend {
   /// reset, so the run continues bit-identical to a backend created with the event in its
   /// scene's "inputs". Throws Error naming an unknown input.
   void input(const std::string& name, bool pressed, double t);
+  /// Report every drift to `sink` for the adjoint of a run (null: stop); while recording,
+  /// particles are marched one by one without the rest cache (the same bits).
+  void record_drift(const pinsim_drift_sink* sink) { tape_.set(sink); }
   const SdfStats& stats() const { return stats_; }
+  /// What the last step's pair contacts found (particle contacts on).
+  const PairContacts::Counts& pair_counts() const { return pairs_.counts(); }
   double depth_min() const { return depth_min_; }
   double march_tolerance() const { return tol_; }
 
@@ -37,10 +44,6 @@ class SdfBackend : public FieldBackend {
   struct Budget {
     int collisions = 0;
     int iterations = 0;
-  };
-  struct Change {
-    double tau;  ///< time into the step, s
-    Vec2 dv;     ///< velocity change
   };
   /// Moves particle i from (x, v) at time t over `dur`; false if the caps stopped it early.
   /// Counts into st and emits into ev (the chunk's own when particles run on threads).
@@ -72,8 +75,9 @@ class SdfBackend : public FieldBackend {
   /// Forgets what the steps so far learned about the timelines (speed bounds, segment
   /// hints, still epochs, rest records), as a newly created backend has.
   void reset_timeline_caches();
-  /// Particle-particle contacts within the step: fills changes_ (see README).
-  void schedule_pairs(const MutableState& s, double dt, EventSink& ev);
+  /// Particle-particle contacts within the step: fills pairs_ (see README), on threads if
+  /// `threads`.
+  void schedule_pairs(const MutableState& s, double dt, bool threads, EventSink& ev);
 
   double depth_min_ = 1e-5;  ///< contact offset ("depthMin"), scene length
   double tol_ = 1e-6;        ///< march tolerance above the offset, scene length
@@ -85,8 +89,9 @@ class SdfBackend : public FieldBackend {
   std::vector<double> speed_bound_;         ///< per obstacle, this step
   std::vector<std::size_t> timeline_hint_;  ///< per obstacle: its timeline's segment last step
   std::vector<std::size_t> last_segment_;   ///< per obstacle: its segment the step before
-  std::vector<std::vector<Change>> changes_;
-  RestCache rest_;  ///< particle steps that ended at rest
+  PairContacts pairs_;                      ///< this step's particle-particle contacts
+  RestCache rest_;                          ///< particle steps that ended at rest
+  DriftRecorder tape_;                      ///< reports drifts while the host records them
   SdfStats stats_;
   /// Particles from which advance() marches them on threads when there are threads: below
   /// it the serial loop is as fast (bench/threads, docs/threads.md).

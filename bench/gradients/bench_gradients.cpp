@@ -1,9 +1,9 @@
-// bench_gradients: the cost of `pinsim grad`. For scenes with force parameters to
-// differentiate, per number of steps N: the forward pass (Simulation::step, with a checkpoint
-// every S = ceil(sqrt(N)) steps) and the backward pass (each segment replayed, its adjoint
-// steps in reverse) as median wall times over repeats, their ratio, the states held at once
-// (sqrt(N) checkpoints and one segment's step records) against the N a taped run would hold,
-// and the process's peak RSS. Prints CSV, one row per case:
+// bench_gradients: the cost of `pinsim grad`. For scenes with force parameters (or, through
+// the sdf backend's collisions, a material) to differentiate, per number of steps N: the forward
+// pass (Simulation::step, with a checkpoint every S = ceil(sqrt(N)) steps) and the backward pass
+// (each segment replayed, its adjoint steps in reverse) as median wall times over repeats, their
+// ratio, the states held at once (sqrt(N) checkpoints and one segment's step records) against the N
+// a taped run would hold, and the process's peak RSS. Prints CSV, one row per case:
 //   case,integrator,particles,steps,segment,peak_states,taped_states,forward_s,backward_s,
 //   backward_over_forward,peak_state_mb,taped_state_mb,max_rss_mb,gradient0
 // (peak_state_mb, taped_state_mb: the states' bytes, 2 x 2N doubles for x and v plus the
@@ -84,6 +84,13 @@ int main(int argc, char** argv) {
                    "final:0:x",
                    {},
                    {"particles[0].v"}});
+  // the sdf backend's collisions: a ball bouncing in a box (a bounce every 0.18 s)
+  cases.push_back({"empty_box_bounces",
+                   cfg + "/empty_box.json",
+                   "symplectic_euler",
+                   "final:0:x",
+                   {},
+                   {"particles[0].v", "obstacles[0].material.restitution"}});
   std::vector<uint64_t> steps =
       quick ? std::vector<uint64_t>{100, 400} : std::vector<uint64_t>{1000, 10000, 100000};
   if (full && !quick) steps.push_back(1000000);

@@ -19,13 +19,25 @@
 // dropped at random into the table (clear of the obstacles, or anywhere in the table's box),
 // 0.2 s (1000 steps), a trajectory frame every 100 steps, with output.events impacts, all
 // and none.
+// The backend-alone figures run under a oneTBB limit of --threads N threads (1 if not given),
+// as `pinsim run --threads N` does: sdf_ns is the process CPU time (every thread's) per
+// ball-step, sdf_wall_ns the wall time; with N > 1 the same loop also runs with 1 thread and
+// sdf_speedup = its wall time over the N-thread one (sdf_hash_same: 1 if both end in the same
+// positions, to the bit). For cases with ball-ball contacts, sdf_no_pairs_ns is the same
+// balls with contacts off (1 thread) and pairs_over_no_pairs = sdf_ns / sdf_no_pairs_ns at 1
+// thread.
 // Usage: bench_run [--quick] [--threads N] [--work DIR] [--pinsim PATH] [--only TEXT]
-//   --quick    small cases, a smoke test (ctest): checks it runs, no timing assertions
-//   --threads  passed to `pinsim run --threads N` when pinsim has that flag (else a note)
-//   --work     folder for scenes and run output (default: a new folder under /tmp, removed)
-//   --only     only the cases whose name contains TEXT
+//                  [--backend-only]
+//   --quick         small cases, a smoke test (ctest): checks it runs, no timing assertions
+//   --threads       threads of the backend-alone loops and of `pinsim run --threads N` when
+//                   pinsim has that flag (else a note)
+//   --work          folder for scenes and run output (default: a new folder under /tmp, removed)
+//   --only          only the cases whose name contains TEXT
+//   --backend-only  only the backend-alone figures (no `pinsim run`)
+#include <malloc.h>
 #include <sys/resource.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -38,6 +50,10 @@
 #include <sstream>
 #include <string>
 #include <vector>
+
+#ifdef PINSIM_WITH_TBB
+#include <tbb/global_control.h>
+#endif
 
 #include "bench_world.hpp"
 #include "box2d_backend.hpp"
@@ -58,6 +74,7 @@ struct Options {
   std::string pinsim = PINSIM_EXE;
   fs::path work;
   bool threads_supported = false;
+  bool backend_only = false;
 };
 
 /// One case: a scene file to run, and for ball scenes the backend-only worlds' inputs.
@@ -94,9 +111,12 @@ json read_json_file(const fs::path& p) {
 
 // Runs pinsim with `args`, stdout+stderr into `log`; returns the exit status, the child's
 // max RSS in `rss_mb`.
+// (A forked child starts with this process's resident pages in its max RSS, which execv
+// keeps: freed memory goes back to the system first, and cases are built only if selected.)
 int spawn(const Options& o, const std::vector<std::string>& args, const fs::path& log,
           double& rss_mb, double* cpu_s = nullptr) {
   std::fflush(stdout);
+  malloc_trim(0);
   const pid_t pid = fork();
   if (pid == 0) {
     std::FILE* f = std::freopen(log.c_str(), "w", stdout);
@@ -171,14 +191,40 @@ RunFigures run_pinsim(const Options& o, const Case& c, int steps, Output mode) {
   return f;
 }
 
-// Backend alone: ns per ball-step over the case's steps (Box2D: its first box2d_steps).
+/// Backend-alone figures of one loop.
+struct BackendFigures {
+  double cpu_ns = NAN;   ///< process CPU time (all threads) per ball-step
+  double wall_ns = NAN;  ///< wall time per ball-step
+  uint64_t hash = 0;     ///< the positions at the end (BenchWorld::hash)
+};
+
+double process_cpu_ns() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return 1e9 * static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec);
+}
+
+// Backend alone on `threads` threads (a oneTBB limit, as `pinsim run --threads`): per
+// ball-step over the case's steps (Box2D: its first box2d_steps).
 template <class B>
-double backend_ns(const Case& c, const json& params, int steps, double gx, double gy) {
-  BenchWorld<B> w(c.scene, params, c.x0, c.v0, c.radius, c.contacts, c.mass);
+BackendFigures backend_ns(const Case& c, const json& params, const json& contacts, int steps,
+                          double gx, double gy, int threads) {
+#ifdef PINSIM_WITH_TBB
+  const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                                  static_cast<std::size_t>(std::max(threads, 1)));
+#else
+  (void)threads;
+#endif
+  BenchWorld<B> w(c.scene, params, c.x0, c.v0, c.radius, contacts, c.mass);
   const double dt = c.scene["time"]["dt"];
-  const double t0 = cpu_ns();
+  const auto w0 = std::chrono::steady_clock::now();
+  const double t0 = process_cpu_ns();
   for (int s = 0; s < steps; ++s) w.step(dt, gx, gy);
-  return (cpu_ns() - t0) / (static_cast<double>(steps) * static_cast<double>(w.w.size()));
+  const double cpu = process_cpu_ns() - t0;
+  const double wall =
+      std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - w0).count();
+  const double per = static_cast<double>(steps) * static_cast<double>(w.w.size());
+  return {cpu / per, wall / per, w.hash()};
 }
 
 json particles_json(const std::vector<double>& x0, const std::vector<double>& v0, double radius,
@@ -274,13 +320,16 @@ Case scene_case(const std::string& name, json scene) {
   return c;
 }
 
-std::vector<Case> make_cases(const Options& o, const json& pinball) {
+std::vector<Case> make_cases(const Options& o, const json& pinball, const std::string& only) {
   std::vector<Case> cases;
   const double r = pinball["particles"][0]["radius"];
   BenchWorld<SdfBackend> probe(pinball, params_for<SdfBackend>(pinball["backend"]["params"]), {},
                                {}, r);
+  // pairs: balls of radius `pair_r` on a lattice `spacing` apart with ball-ball contacts
+  // (restitution 0.5)
   auto ball_case = [&](const std::string& name, std::size_t n, int steps, bool pairs,
-                       bool anywhere = false) {
+                       bool anywhere = false, double pair_r = 0.002, double spacing = 0.0045) {
+    if (name.find(only) == std::string::npos) return;  // not selected: not built
     Case c;
     c.name = name;
     c.scene = pinball;
@@ -288,8 +337,8 @@ std::vector<Case> make_cases(const Options& o, const json& pinball) {
     c.radius = r;
     c.mass = 1.0;
     if (pairs) {
-      c.radius = 0.002;
-      lattice_balls(*probe.be, c.radius, 0.0045, n, c.x0, c.v0);
+      c.radius = pair_r;
+      lattice_balls(*probe.be, c.radius, spacing, n, c.x0, c.v0);
       c.contacts = {{"particles", true}, {"restitution", 0.5}};
       c.scene["contacts"] = c.contacts;
     } else if (anywhere) {
@@ -330,12 +379,15 @@ std::vector<Case> make_cases(const Options& o, const json& pinball) {
   ball_case("drop_100_settled", 100, 15000, false);
   ball_case("drop_10000_settled", 10000, 15000, false);
   ball_case("drop_10000_ball_contacts", 10000, 5000, true);
+  // Multiball: 100,000 balls of 0.6 mm with ball-ball contacts, 0.2 s.
+  ball_case("multiball_100000_ball_contacts", 100000, 1000, true, false, 0.0006, 0.00135);
   // Issue 15's crowded drop: 10,000 balls dropped at random, 0.2 s, a frame every 100 steps.
   // Dropped clear of the obstacles (drop_balls), and anywhere in the table's box.
   for (const char* where : {"", "anywhere_"})
     for (const char* mode : {"impacts", "all", "none"}) {
-      ball_case(std::string("crowded_drop_10000_") + where + "events_" + mode, 10000, 1000, false,
-                *where != '\0');
+      const std::string name = std::string("crowded_drop_10000_") + where + "events_" + mode;
+      ball_case(name, 10000, 1000, false, *where != '\0');
+      if (cases.empty() || cases.back().name != name) continue;
       cases.back().scene["output"]["every"] = 100;
       cases.back().scene["output"]["events"] = mode;
     }
@@ -368,12 +420,14 @@ int main(int argc, char** argv) {
       keep = true;
     } else if (a == "--pinsim" && i + 1 < argc) {
       o.pinsim = argv[++i];
+    } else if (a == "--backend-only") {
+      o.backend_only = true;
     } else if (a == "--only" && i + 1 < argc) {
       only = argv[++i];
     } else {
       std::fprintf(stderr,
                    "usage: bench_run [--quick] [--threads N] [--work DIR] [--pinsim PATH] [--only "
-                   "TEXT]\n");
+                   "TEXT] [--backend-only]\n");
       return 2;
     }
   }
@@ -386,6 +440,9 @@ int main(int argc, char** argv) {
     o.work = tmpl;
   }
   fs::create_directories(o.work);
+  // the multiball scene lists 100,000 particles: above the scene reader's default limit of
+  // 1,000,000 JSON values (kept if the caller set one)
+  setenv("PINSIM_JSON_MAX_VALUES", "20000000", 0);
   {
     double rss = 0.0;
     spawn(o, {"run", "--help"}, o.work / "help.log", rss);
@@ -395,16 +452,18 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench_run: note: `pinsim run` has no --threads yet; ignored\n");
 
   const json pinball = read_json_file(fs::path(PINSIM_CONFIG_DIR) / "pinball.json");
-  std::vector<Case> cases = make_cases(o, pinball);
+  std::vector<Case> cases = make_cases(o, pinball, only);
   std::erase_if(cases, [&](const Case& c) { return c.name.find(only) == std::string::npos; });
   const double gx = pinball["forces"][0]["params"]["g"][0],
                gy = pinball["forces"][0]["params"]["g"][1];
   json box2d_params = pinball["crosscheck"]["params"]["box2d"];
 
+  const int threads = std::max(o.threads, 1);
   std::printf(
       "case,particles,steps,sdf_ns,box2d_ns,box2d_steps,run_min_output_ns,run_ns,run_over_sdf,"
       "run_over_min_output,run_wall_ns,max_rss_mb,events_rows,contacts_rows,run_wall_s,contacts,"
-      "events_mb,contacts_mb\n");
+      "events_mb,contacts_mb,threads,sdf_wall_ns,sdf_1t_wall_ns,sdf_speedup,sdf_hash_same,"
+      "sdf_no_pairs_ns,pairs_over_no_pairs\n");
   int failures = 0;
   for (const Case& c : cases) {
     {
@@ -413,40 +472,59 @@ int main(int argc, char** argv) {
     }
     const double dt = c.scene["time"]["dt"];
     const int steps = static_cast<int>(std::lround(c.scene["time"]["duration"].get<double>() / dt));
-    double sdf = NAN, box2d = NAN;
+    BackendFigures sdf, sdf1, no_pairs;
+    double box2d = NAN;
     if (c.balls) {
-      sdf = backend_ns<SdfBackend>(c, params_for<SdfBackend>(c.scene["backend"]["params"]), steps,
-                                   gx, gy);
+      const json sp = params_for<SdfBackend>(c.scene["backend"]["params"]);
+      sdf = backend_ns<SdfBackend>(c, sp, c.contacts, steps, gx, gy, threads);
+      sdf1 = threads > 1 ? backend_ns<SdfBackend>(c, sp, c.contacts, steps, gx, gy, 1) : sdf;
+      if (!c.contacts.is_null())
+        no_pairs = backend_ns<SdfBackend>(c, sp, {{"particles", false}}, steps, gx, gy, 1);
       try {
-        box2d = backend_ns<Box2dBackend>(c, params_for<Box2dBackend>(box2d_params), c.box2d_steps,
-                                         gx, gy);
+        box2d = backend_ns<Box2dBackend>(c, params_for<Box2dBackend>(box2d_params), c.contacts,
+                                         c.box2d_steps, gx, gy, 1)
+                    .cpu_ns;
       } catch (const std::exception& e) {
         std::fprintf(stderr, "bench_run: %s: box2d failed: %s\n", c.name.c_str(), e.what());
       }
     }
-    const RunFigures bare = run_pinsim(o, c, steps, Output::kLeast);
-    const RunFigures out = run_pinsim(o, c, steps, Output::kDefault);
-    failures += !bare.ok + !out.ok;
+    RunFigures bare, out;
+    if (!o.backend_only) {
+      bare = run_pinsim(o, c, steps, Output::kLeast);
+      out = run_pinsim(o, c, steps, Output::kDefault);
+      failures += !bare.ok + !out.ok;
+    }
     // Particles from the run's own summary (bodies generate theirs).
     const double particles = out.ok ? out.particles : static_cast<double>(c.x0.size() / 2);
     const double per = 1e9 / (static_cast<double>(steps) * particles);
     // CPU time, as the backend-only figures (the machine may be shared).
     const double run_ns = out.cpu_s * per, bare_ns = bare.cpu_s * per, wall_ns = out.loop_s * per;
     std::printf(
-        "%s,%.0f,%d,%.2f,%.2f,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%llu,%llu,%.2f,%llu,%.1f,%.1f\n",
-        c.name.c_str(), particles, steps, sdf, box2d, c.balls ? c.box2d_steps : 0, bare_ns, run_ns,
-        run_ns / sdf, run_ns / bare_ns, wall_ns, out.max_rss_mb,
+        "%s,%.0f,%d,%.2f,%.2f,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%llu,%llu,%.2f,%llu,%.1f,%.1f,%d,"
+        "%.2f,%.2f,%.2f,%d,%.2f,%.2f\n",
+        c.name.c_str(), particles, steps, sdf.cpu_ns, box2d, c.balls ? c.box2d_steps : 0, bare_ns,
+        run_ns, run_ns / sdf.cpu_ns, run_ns / bare_ns, wall_ns, out.max_rss_mb,
         static_cast<unsigned long long>(out.events_rows),
         static_cast<unsigned long long>(out.contacts_rows), out.loop_s,
-        static_cast<unsigned long long>(out.contacts), out.events_mb, out.contacts_mb);
+        static_cast<unsigned long long>(out.contacts), out.events_mb, out.contacts_mb, threads,
+        sdf.wall_ns, sdf1.wall_ns, sdf1.wall_ns / sdf.wall_ns, sdf.hash == sdf1.hash ? 1 : 0,
+        no_pairs.cpu_ns, sdf1.cpu_ns / no_pairs.cpu_ns);
     std::fflush(stdout);
-    // Sane figures: every measured one finite and positive (no timing limits).
-    for (double v : {run_ns, bare_ns, wall_ns, c.balls ? sdf : 1.0, out.max_rss_mb})
+    // Sane figures: every measured one finite and positive (no timing limits); the same
+    // positions for any thread count.
+    std::vector<double> figures = {c.balls ? sdf.cpu_ns : 1.0};
+    if (!o.backend_only) figures.insert(figures.end(), {run_ns, bare_ns, wall_ns, out.max_rss_mb});
+    for (double v : figures)
       if (!(std::isfinite(v) && v > 0.0)) {
         std::fprintf(stderr, "bench_run: %s: a figure is not a positive number\n", c.name.c_str());
         ++failures;
         break;
       }
+    if (c.balls && sdf.hash != sdf1.hash) {
+      std::fprintf(stderr, "bench_run: %s: 1 and %d threads end in different positions\n",
+                   c.name.c_str(), threads);
+      ++failures;
+    }
     if (!keep) {
       fs::remove_all(o.work / (c.name + ".out"));
       fs::remove_all(o.work / (c.name + ".min"));

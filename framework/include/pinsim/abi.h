@@ -42,7 +42,7 @@ extern "C" {
 /** Major version: changes with every incompatible change (see the top of this file). */
 #define PINSIM_ABI_MAJOR 4u
 /** Minor version: counts the compatible additions within the major. */
-#define PINSIM_ABI_MINOR 2u
+#define PINSIM_ABI_MINOR 3u
 /** The value of pinsim_plugin.abi_version: the major version. */
 #define PINSIM_ABI_VERSION PINSIM_ABI_MAJOR
 
@@ -299,6 +299,93 @@ typedef struct pinsim_constraint_set {
   const double* kd; /**< count dampings, >= 0, on dC/dt; J s/C^2 */
 } pinsim_constraint_set;
 
+/* 4.3: what a differentiable backend reports of each drift (one advance() call) while the
+ * host records (record_drift), so that the host's adjoint of a run can differentiate it
+ * (docs/gradients.md). All times are into the drift, s; vectors are (x, y); 2x2 matrices
+ * column-major. */
+
+/** How an impact's time is determined (pinsim_drift_impact.kind). */
+enum {
+  /** the path reached the contact offset: phi(p, t0 + tau) = offset along the straight path
+   *  since the previous velocity change (the time of impact) */
+  PINSIM_IMPACT_TOI = 0,
+  /** an impulse where the particle already was, inside the contact band (a persistent or
+   *  resting contact): tau is the march's time, not a root of phi */
+  PINSIM_IMPACT_IN_BAND = 1,
+  /** the velocity change of a particle-particle contact (pinsim_drift_pair `pair`, `side`) */
+  PINSIM_IMPACT_CHANGE = 2
+};
+/** pinsim_drift_impact.flags */
+enum {
+  PINSIM_IMPACT_RESTING = 1u << 0, /**< slower than the rest speed: restitution 0, no kick */
+  PINSIM_IMPACT_EMITTED = 1u << 1  /**< reported as a contact event */
+};
+
+/** One velocity change of one particle. Per drift, a particle's changes come in time order,
+ *  the particles in increasing order. */
+typedef struct pinsim_drift_impact {
+  uint32_t kind;      /**< PINSIM_IMPACT_* */
+  uint32_t flags;     /**< PINSIM_IMPACT_RESTING, PINSIM_IMPACT_EMITTED */
+  int64_t particle;   /**< its index */
+  int64_t obstacle;   /**< index into the scene's "obstacles", or -1 (CHANGE) */
+  int64_t pair;       /**< CHANGE: index of the pair hit in this drift, else -1 */
+  int64_t side;       /**< CHANGE: 0 the hit's particle i, 1 its particle j */
+  double tau;         /**< time of the change, s into the drift */
+  double p[2];        /**< the centre there (before a push back to the offset) */
+  double v_before[2]; /**< velocity before the change */
+  double v_after[2];  /**< velocity after it */
+  double n[2];        /**< unit normal grad phi at (p, t0 + tau) */
+  double n_p[4];      /**< d n / d p (the SDF's Hessian), 1/length */
+  double n_t[2];      /**< d n / d t at fixed p, 1/s */
+  double phi, phi_t;  /**< the centre's signed distance, and d phi / d t at fixed p */
+  double offset;      /**< radius + the backend's contact offset: the level of a TOI */
+  double u[2];        /**< the obstacle's velocity at the contact point p - phi n */
+  double u_p[4];      /**< d u / d q there, 1/s */
+  double u_t[2];      /**< d u / d t there */
+  double restitution; /**< the obstacle's material */
+  double friction;    /**< Coulomb coefficient */
+  double kick;        /**< speed added along the normal */
+} pinsim_drift_impact;
+
+/** One particle-particle contact: discs i and j on the tracks x(tau) = xr + vc (tau - tr),
+ *  hit at the root tau of |x_i - x_j| = radius_sum (touching: already overlapping at
+ *  max(tr_i, tr_j), and tau is that), impulse -(1 + e) vn / (w_i + w_j) along the normal. */
+typedef struct pinsim_drift_pair {
+  int64_t i, j;
+  double tau;
+  double xr_i[2], vc_i[2], tr_i;
+  double xr_j[2], vc_j[2], tr_j;
+  double radius_sum, w_i, w_j, restitution;
+  uint32_t touching;
+} pinsim_drift_pair;
+
+/** Where the drift was not differentiable or came close to it (pinsim_drift_finding.kind). */
+enum {
+  PINSIM_FINDING_CAP_HIT = 0,  /**< a march ran out of collisions or iterations */
+  PINSIM_FINDING_TOUCH = 1,    /**< the path touched the contact band without approaching */
+  PINSIM_FINDING_GRAZING = 2,  /**< an impulse with almost no normal speed */
+  PINSIM_FINDING_STEP_END = 3, /**< a time of impact at the start or end of the drift */
+  PINSIM_FINDING_RESTING = 4,  /**< a resting contact */
+  PINSIM_FINDING_ORDER = 5     /**< particle-particle changes out of time order */
+};
+typedef struct pinsim_drift_finding {
+  uint32_t kind;
+  int64_t particle;
+  int64_t obstacle; /**< or -1 */
+  double t;         /**< absolute time, s */
+  double margin;    /**< e.g. the normal speed of a grazing impact */
+} pinsim_drift_finding;
+
+/** Receives one drift: begin() with the state entering advance() first, then the pair hits
+ *  (in the order the backend handled them), the impacts and the findings. */
+typedef struct pinsim_drift_sink {
+  void* context;
+  void (*begin)(void* context, const pinsim_state_view* entering, double dt);
+  void (*pair)(void* context, const pinsim_drift_pair* hit);
+  void (*impact)(void* context, const pinsim_drift_impact* impact);
+  void (*finding)(void* context, const pinsim_drift_finding* finding);
+} pinsim_drift_sink;
+
 /** The table a plugin exports. Check abi_version and struct_size before anything else
  *  (the versions at the top of this file). */
 typedef struct pinsim_plugin {
@@ -332,6 +419,11 @@ typedef struct pinsim_plugin {
    *  unless PINSIM_CAP_CONSTRAINTS. */
   int (*constraints)(void* self, const double* x, const uint64_t* which, uint64_t count, double* c,
                      double* dc, pinsim_error* err);
+  /** 4.3, backends: from now on every advance() reports its drift to `sink`
+   *  (pinsim_drift_sink; NULL: stop). It may march particles one by one and skip caches
+   *  while recording, but the state it reaches is the same to the bit. NULL for a backend
+   *  with nothing to record (no contacts) or that cannot differentiate its step. */
+  int (*record_drift)(void* self, const pinsim_drift_sink* sink, pinsim_error* err);
 } pinsim_plugin;
 
 /** Length of the smallest table of this major: a 4.0 table, every entry up to `backend`. */

@@ -1,4 +1,4 @@
-// pinsim fit SCENE --target RUN --wrt PATH... [--out DIR] [--set PATH=VALUE]...
+// pinsim fit SCENE (--target RUN | --loss LOSS) --wrt PATH... [--out DIR] [--set PATH=VALUE]...
 //            [--max-iterations N] [--tolerance T]
 #include <spdlog/spdlog.h>
 
@@ -21,6 +21,7 @@ namespace {
 struct FitArgs {
   std::string scene;
   std::string target;
+  std::string loss;  ///< in place of --target: a loss of `pinsim grad` to minimize
   std::vector<std::string> wrt;
   std::string out;
   std::vector<std::string> set;
@@ -42,6 +43,12 @@ std::vector<std::string> assignments(const std::vector<grad::WrtValue>& values,
 }
 
 int fit_command(const FitArgs& a) {
+  if (a.target.empty() == a.loss.empty())
+    throw InputError(
+        "pinsim fit: give either --target RUN_DIR (the misfit to a recorded run) "
+        "or --loss LOSS, not " +
+        std::string(a.target.empty() ? "neither" : "both"));
+  const std::string what = a.target.empty() ? "loss" : "misfit";
   const Scene start = load_scene_or_default(a.scene, a.set);
   PluginLoader loader(plugin_search_dirs(start.plugin_path));
   // the values and their bounds, as the scene and its plugins give them
@@ -60,7 +67,7 @@ int fit_command(const FitArgs& a) {
       f.upper = v.upper;
       vars.push_back(f);
     }
-  const grad::LossFactory loss = loss_factory("misfit:" + a.target);
+  const grad::LossFactory loss = loss_factory(a.target.empty() ? a.loss : "misfit:" + a.target);
   grad::FitObjective objective = [&](const Eigen::VectorXd& x, Eigen::VectorXd& g) {
     std::vector<std::string> overrides = a.set;
     for (const std::string& s : assignments(values, x)) overrides.push_back(s);
@@ -74,7 +81,7 @@ int fit_command(const FitArgs& a) {
   nlohmann::json iterations = nlohmann::json::array();
   auto on_iteration = [&](const grad::FitIteration& it) {
     std::string line = "iteration " + std::to_string(it.iteration) + " (" +
-                       std::to_string(it.evaluations) + " runs): misfit " + num(it.loss, 12);
+                       std::to_string(it.evaluations) + " runs): " + what + " " + num(it.loss, 12);
     nlohmann::json xs = nlohmann::json::object();
     for (std::size_t k = 0; k < vars.size(); ++k) {
       const auto i = static_cast<Eigen::Index>(k);
@@ -100,7 +107,8 @@ int fit_command(const FitArgs& a) {
   for (const std::string& s : assignments(values, res.x)) overrides.push_back(s);
   const Scene fitted = load_scene_or_default(a.scene, overrides);
   std::cout << "fitted (" << res.iterations << " iterations, " << res.evaluations
-            << " runs; stopped by " << res.stop << "): misfit " << num(res.loss, 12) << "\n";
+            << " runs; stopped by " << res.stop << "): " << what << " " << num(res.loss, 12)
+            << "\n";
   nlohmann::json result = nlohmann::json::object();
   for (std::size_t k = 0; k < vars.size(); ++k) {
     std::cout << "  " << vars[k].name << " = " << num(res.x[static_cast<Eigen::Index>(k)], 17)
@@ -113,10 +121,14 @@ int fit_command(const FitArgs& a) {
     std::filesystem::create_directories(out, ec);
     if (ec) throw OutputError(output_error_text(out, "create", ec.value()));
     write_file_atomically(out / "scene.json", fitted.doc.dump(2) + "\n");
-    const nlohmann::json report = {
-        {"target", a.target}, {"scene", fitted.label},        {"values", result},
-        {"misfit", res.loss}, {"iterations", res.iterations}, {"evaluations", res.evaluations},
-        {"stop", res.stop},   {"history", iterations}};
+    const nlohmann::json report = {{"target", a.target.empty() ? a.loss : a.target},
+                                   {"scene", fitted.label},
+                                   {"values", result},
+                                   {"misfit", res.loss},
+                                   {"iterations", res.iterations},
+                                   {"evaluations", res.evaluations},
+                                   {"stop", res.stop},
+                                   {"history", iterations}};
     write_file_atomically(out / "fit.json", report.dump(2) + "\n");
     spdlog::info("fitted scene written to {}", (out / "scene.json").string());
   }
@@ -132,11 +144,14 @@ void add_fit_command(CLI::App& app) {
   c->add_option("scene", a->scene, "Scene file (JSON)")->required();
   c->add_option("--target", a->target,
                 "Run folder to fit (pinsim run --out): the misfit is the sum over its frames of "
-                "squared position differences")
-      ->required();
+                "squared position differences");
+  c->add_option("--loss", a->loss,
+                "In place of --target: a loss of pinsim grad to minimize (target:I:X,Y[@T], "
+                "final:I:x|y|vx|vy, misfit:RUN_DIR)");
   c->add_option("--wrt", a->wrt,
                 "Values to fit, as --set paths (particles[I].x, particles[I].v, "
-                "forces[K].params.NAME); bounds from the plugins' parameter tables")
+                "forces[K].params.NAME, obstacles[K].material.restitution|friction|kick); bounds "
+                "from the plugins' parameter tables and the materials' ranges")
       ->required()
       ->take_all();
   c->add_option("--out,-o", a->out, "Folder for the fitted scene.json and fit.json");

@@ -51,9 +51,18 @@ int grad_command(const GradArgs& a) {
       g.append(c ? ", " : "").append(num(p.gradient[c], 17));
     std::cout << p.wrt.path << ": " << g << "\n";
   }
-  for (const grad::Finding& f : r.findings)
-    spdlog::warn("{}: not differentiable at t = {} (particle {})", scene.label, num(f.t),
-                 f.particle);
+  for (const nlohmann::json& f : j["findings"])
+    spdlog::warn(
+        "{}: not differentiable at t = {}: {} of particle {}{} (the gradient there is "
+        "a one-sided one, or none)",
+        scene.label, num(f["t"].get<double>()), f["kind"].get<std::string>(),
+        f["particle"].get<int64_t>(),
+        f["obstacle"].get<int64_t>() >= 0
+            ? " with obstacle " + std::to_string(f["obstacle"].get<int64_t>())
+            : std::string());
+  if (r.findings_count > r.findings.size())
+    spdlog::warn("{}: {} places where the run is not differentiable ({} listed in gradient.json)",
+                 scene.label, r.findings_count, r.findings.size());
   if (!a.out.empty()) {
     write_file_atomically(std::filesystem::path(a.out) / "gradient.json", j.dump(2) + "\n");
     spdlog::info("gradient written to {}",
@@ -76,7 +85,7 @@ void add_grad_command(CLI::App& app) {
       ->required();
   c->add_option("--wrt", a->wrt,
                 "Values to differentiate in, as --set paths: particles[I].x, particles[I].v, "
-                "forces[K].params.NAME")
+                "forces[K].params.NAME, obstacles[K].material.restitution|friction|kick (sdf)")
       ->required()
       ->take_all();
   c->add_option("--out,-o", a->out, "Folder for gradient.json");

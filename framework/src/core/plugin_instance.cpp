@@ -209,6 +209,14 @@ OutlineReport BackendInstance::outline(const State& s, double tolerance) const {
   return out;
 }
 
+void BackendInstance::record_drift(const pinsim_drift_sink* sink) {
+  if (!can_record_drift())
+    throw PluginError(context_ + ": backend '" + plugin_->name() +
+                      "' does not record its drifts (no record_drift)");
+  pinsim_error err = make_err(err_);
+  if (plugin_->table->record_drift(self_, sink, &err) != 0) fail("record_drift");
+}
+
 void BackendInstance::input(const std::string& name, bool pressed, double t) {
   if (!has_input())
     throw PluginError(context_ + ": backend '" + plugin_->name() +

@@ -118,6 +118,15 @@ class BackendInstance {
   /// the backend's default). Throws PluginError if the backend has no outline() or fails.
   OutlineReport outline(const State& s, double tolerance) const;
   const LoadedPlugin& plugin() const { return *plugin_; }
+  /// True if the backend reports its drifts for the adjoint of a run (ABI 4.3 record_drift,
+  /// with PINSIM_CAP_DIFFERENTIABLE).
+  bool can_record_drift() const {
+    return plugin_->table->record_drift != nullptr &&
+           (plugin_->table->capabilities & PINSIM_CAP_DIFFERENTIABLE) != 0;
+  }
+  /// Every advance() from now on reports its drift to `sink` (null: stop). Throws
+  /// PluginError if the backend cannot or fails.
+  void record_drift(const pinsim_drift_sink* sink);
 
  private:
   [[noreturn]] void fail(const char* what) const;

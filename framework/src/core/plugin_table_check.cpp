@@ -16,6 +16,7 @@ constexpr std::size_t kMinorTableEnd[] = {
     PINSIM_ABI_MIN_TABLE_SIZE,                              // 4.0: up to `backend`
     offsetof(pinsim_plugin, abi_minor) + sizeof(uint32_t),  // 4.1: abi_minor
     offsetof(pinsim_plugin, constraints) + sizeof(void*),   // 4.2: constraint_set, constraints
+    offsetof(pinsim_plugin, record_drift) + sizeof(void*),  // 4.3: record_drift
 };
 static_assert(std::size(kMinorTableEnd) == PINSIM_ABI_MINOR + 1, "one table end per minor");
 
@@ -133,6 +134,7 @@ pinsim_plugin table_as_read(const pinsim_plugin& t) {
     out.constraint_set = t.constraint_set;
     out.constraints = t.constraints;
   }
+  if (v.minor >= 3 && PINSIM_TABLE_HAS(&t, record_drift)) out.record_drift = t.record_drift;
   return out;
 }
 
@@ -172,7 +174,13 @@ std::string plugin_table_problems(const pinsim_plugin& t) {
         out);
     if (t.constraint_set != nullptr || t.constraints != nullptr)
       out.push_back("is a backend but provides the constraint functions of a force");
+    if (t.record_drift != nullptr && !(caps & PINSIM_CAP_DIFFERENTIABLE))
+      out.push_back(
+          "provides the record_drift function but does not declare "
+          "PINSIM_CAP_DIFFERENTIABLE");
   }
+  if (t.kind == PINSIM_KIND_FORCE && t.record_drift != nullptr)
+    out.push_back("is a force but provides the record_drift function of a backend");
   std::string joined;
   for (const auto& s : out) joined += (joined.empty() ? "" : "; ") + s;
   return joined;

@@ -142,6 +142,8 @@ class Simulation {
   const std::vector<pinsim_event>& events() const { return events_; }
   const std::vector<std::unique_ptr<ForceInstance>>& forces() const { return forces_; }
   const BackendInstance& backend() const { return *backend_; }
+  /// The backend, to start or stop its drift recording (the adjoint of a run).
+  BackendInstance& backend() { return *backend_; }
   const std::string& integrator_name() const { return integrator_name_; }
   /// Threads the steps run on (RunOptions::threads resolved; 1 without oneTBB).
   unsigned threads() const { return threads_; }

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <map>
+#include <optional>
 #include <utility>
 
 #include "core/format.hpp"
@@ -14,6 +15,7 @@
 #include "core/integrator.hpp"
 #include "core/set_path.hpp"
 #include "gradients/checkpoints.hpp"
+#include "gradients/drift_record.hpp"
 
 namespace pinsim::grad {
 namespace {
@@ -35,11 +37,45 @@ bool parse_index(const std::string& s, std::size_t& out) {
 }
 
 constexpr const char* kDifferentiable =
-    "differentiable: particles[I].x, particles[I].v (explicit particles' initial state) and "
-    "forces[K].params.NAME (a real or 2-vector parameter)";
+    "differentiable: particles[I].x, particles[I].v (explicit particles' initial state), "
+    "forces[K].params.NAME (a real or 2-vector parameter) and, with a backend that records its "
+    "collisions (sdf), obstacles[K].material.restitution, .friction, .kick";
 
 [[noreturn]] void bad_path(const std::string& path, const std::string& what) {
   throw InputError("--wrt " + path + ": " + what);
+}
+
+/// An obstacle's material value (restitution, friction or kick), with its value (the scene's
+/// or the default) and bounds (scene_field's material: e in [0, 1], mu >= 0, kick >= 0).
+WrtValue material_value(const Scene& scene, const Simulation& sim, const std::string& path,
+                        const std::vector<std::string>& k) {
+  if (!sim.backend().can_record_drift())
+    bad_path(path,
+             "not differentiable: obstacle materials need a backend that records its "
+             "collisions for the adjoint, and backend '" +
+                 sim.backend().plugin().name() + "' does not (" + kDifferentiable + ")");
+  const nlohmann::json& obs =
+      scene.doc.contains("obstacles") ? scene.doc["obstacles"] : nlohmann::json::array();
+  std::size_t o = 0;
+  if (k.size() != 4 || !parse_index(k[1], o) || k[2] != "material" ||
+      (k[3] != "restitution" && k[3] != "friction" && k[3] != "kick"))
+    bad_path(path, "expected obstacles[K].material.restitution, .friction or .kick");
+  if (!obs.is_array() || o >= obs.size())
+    bad_path(path, "the scene has " + std::to_string(obs.is_array() ? obs.size() : 0) +
+                       " obstacles, no index " + k[1]);
+  WrtValue w;
+  w.path = path;
+  w.kind = WrtValue::Kind::kMaterial;
+  w.index = o;
+  w.param = k[3];
+  double v = k[3] == "restitution" ? 1.0 : 0.0;
+  const nlohmann::json& ob = obs[o];
+  if (ob.contains("material") && ob["material"].contains(k[3]))
+    v = ob["material"][k[3]].get<double>();
+  w.value = {v};
+  w.lower = 0.0;
+  if (k[3] == "restitution") w.upper = 1.0;
+  return w;
 }
 
 /// A particle's initial position or velocity.
@@ -167,7 +203,7 @@ class SimulationForces : public ForceModel {
     for (std::size_t w = 0; w < wrt.size(); ++w) {
       const WrtValue& v = wrt[w];
       for (std::size_t c = 0; c < v.value.size(); ++c) {
-        if (v.kind == WrtValue::Kind::kVelocity) continue;
+        if (v.kind == WrtValue::Kind::kVelocity || v.kind == WrtValue::Kind::kMaterial) continue;
         const double theta = v.value[c];
         const double eps = rel_eps * std::max(std::abs(theta), 1.0);
         const double up = std::min(theta + eps, v.upper), down = std::max(theta - eps, v.lower);
@@ -359,32 +395,56 @@ class SimulationForces : public ForceModel {
   bool have_ = false;
 };
 
-/// What a step of the replay did, for its adjoint, for a backend whose drift is x += h v
-/// without contacts: the state entering the step and the one leaving it give the drift's
-/// velocity (symplectic and implicit Euler: the velocity leaving it; velocity Verlet: the
-/// half kick v0 + h/2 M^-1 f(x0, v0), and its closing predictor).
-void fill_tape(Scheme scheme, ForceModel& forces, const State& end, double h, StepTape& tape) {
+/// The velocities leaving a recorded drift: each particle's after its last change.
+Eigen::Matrix2Xd drift_velocities(const DriftTape& d) {
+  Eigen::Matrix2Xd v = d.v_in;
+  for (const Impact& m : d.impacts) v.col(static_cast<Eigen::Index>(m.particle)) = m.v_after;
+  return v;
+}
+
+/// What a step of the replay did, for its adjoint. The drift is the backend's recording
+/// (`recorded`), or for a backend whose drift is x += h v without contacts it follows from
+/// the state entering the step and the one leaving it (symplectic and implicit Euler: the
+/// velocity leaving it; velocity Verlet: the half kick v0 + h/2 M^-1 f(x0, v0)). Velocity
+/// Verlet also needs the velocities after the impact correction (correct_impacts: each
+/// emitted impact k of particle i takes c_k (tau_k - h/2) (a0_i.n_k) n_k off the drift's,
+/// a0 = M^-1 f(x0, v0), c_k = clamp(-(vn_after - vn_before) / vn_before, 1, 2)) and its
+/// closing predictor.
+void fill_tape(Scheme scheme, ForceModel& forces, const State& end, double h, bool recorded,
+               StepTape& tape) {
   const State& start = tape.start;
   DriftTape& d = tape.drift;
-  d.t0 = start.t;
-  d.h = h;
-  d.x_in = start.x;
-  d.inv_mass = start.inv_mass;
-  d.impacts.clear();
-  d.pairs.clear();
-  d.findings.clear();
+  if (!recorded) {
+    d.t0 = start.t;
+    d.h = h;
+    d.x_in = start.x;
+    d.inv_mass = start.inv_mass;
+    d.impacts.clear();
+    d.pairs.clear();
+    d.findings.clear();
+  }
   tape.predicted = false;
   if (scheme != Scheme::kVelocityVerlet) {
-    d.v_in = end.v;
+    if (!recorded) d.v_in = end.v;
     return;
   }
   Eigen::Matrix2Xd f;
   forces.force(start, f);
-  d.v_in = start.v;
-  for (Eigen::Index i = 0; i < f.cols(); ++i)
-    d.v_in.col(i) += (0.5 * h * start.inv_mass[i]) * f.col(i);
+  if (!recorded) {
+    d.v_in = start.v;
+    for (Eigen::Index i = 0; i < f.cols(); ++i)
+      d.v_in.col(i) += (0.5 * h * start.inv_mass[i]) * f.col(i);
+  }
   tape.x1 = end.x;
-  tape.vc = d.v_in;
+  tape.vc = recorded ? drift_velocities(d) : d.v_in;
+  for (const Impact& m : d.impacts) {
+    const auto i = static_cast<Eigen::Index>(m.particle);
+    if (!m.emitted || m.obstacle < 0 || !(start.inv_mass[i] > 0.0)) continue;
+    const double vn_b = (m.v_before - m.u).dot(m.n), vn_a = (m.v_after - m.u).dot(m.n);
+    if (!(vn_b < 0.0)) continue;
+    const double c = std::clamp((vn_a - vn_b) / -vn_b, 1.0, 2.0);
+    tape.vc.col(i) -= c * (m.tau - 0.5 * h) * (start.inv_mass[i] * f.col(i)).dot(m.n) * m.n;
+  }
   if (forces.velocity_dependent()) {
     State s1 = start;
     s1.x = end.x;
@@ -405,6 +465,8 @@ const char* kind_name(WrtValue::Kind k) {
       return "initial velocity";
     case WrtValue::Kind::kForceParameter:
       return "force parameter";
+    case WrtValue::Kind::kMaterial:
+      return "obstacle material";
   }
   return "";
 }
@@ -440,10 +502,7 @@ std::vector<WrtValue> resolve_wrt(const Scene& scene, const Simulation& sim,
     } else if (k[0] == "forces") {
       out.push_back(force_value(scene, sim, p, k));
     } else if (k[0] == "obstacles") {
-      bad_path(p,
-               "not differentiable: obstacle materials need a backend that records its "
-               "collisions for the adjoint, and backend '" +
-                   sim.backend().plugin().name() + "' does not (" + kDifferentiable + ")");
+      out.push_back(material_value(scene, sim, p, k));
     } else if (scene.doc.contains(k[0])) {
       bad_path(p, "not differentiable (" + std::string(kDifferentiable) + ")");
     } else {
@@ -471,7 +530,7 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
   if (!(sim.backend().plugin().table->capabilities & PINSIM_CAP_DIFFERENTIABLE))
     throw InputError(scene.label + ": backend '" + r.backend +
                      "' cannot differentiate its step (it does not declare "
-                     "PINSIM_CAP_DIFFERENTIABLE); differentiable backends: none");
+                     "PINSIM_CAP_DIFFERENTIABLE); differentiable backends: none, sdf");
   const std::vector<WrtValue> values = resolve_wrt(scene, sim, wrt);
   SimulationForces model(sim, scene, loader, values, options.rel_eps);
   const double h = scene.dt;
@@ -515,6 +574,14 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
   const uint64_t evals1 = sim.force_evaluations(), jac1 = sim.jacobian_evaluations();
   uint64_t cur = 0;
   std::map<uint64_t, State> term_states;  // the segment's states that a loss term reads
+  // A backend with contacts reports each replayed drift: its impacts and where it is not
+  // differentiable.
+  std::optional<DriftRecording> recording;
+  if (sim.backend().can_record_drift()) recording.emplace(sim.backend());
+  auto note = [&r](const Finding& f) {
+    if (r.findings.size() < GradientReport::kMaxFindings) r.findings.push_back(f);
+    ++r.findings_count;
+  };
   t0 = Clock::now();
   backward_pass<Checkpoint, StepTape>(
       plan, checkpoints,
@@ -525,10 +592,18 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
       },
       [&](StepTape* tape) {
         tape->start = sim.state();  // into the tape's own storage, reused segment after segment
+        if (recording) recording->into(&tape->drift);
         replay->step(sim, h);
         ++cur;
         sim.state().t = static_cast<double>(cur) * h;
-        fill_tape(scheme, model, sim.state(), h, *tape);
+        const bool recorded = recording && recording->began();
+        fill_tape(scheme, model, sim.state(), h, recorded, *tape);
+        if (recorded) {
+          std::vector<Finding> found = tape->drift.findings;
+          assess_impacts(tape->drift, found);
+          for (const Finding& f : found) note(f);
+          r.impacts += tape->drift.impacts.size();
+        }
         if (loss->has_term(cur)) term_states[cur] = sim.state();
       },
       [&](uint64_t n, const StepTape& tape) {
@@ -547,6 +622,7 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
         r.replay_deviation = std::max(r.replay_deviation, std::isnan(dev) ? HUGE_VAL : dev);
       });
   if (loss->has_term(0)) loss->term(0, initial, a.gx, a.gv);
+  recording.reset();
   r.backward_s = seconds_since(t0);
   r.backward_force_evals = sim.force_evaluations() - evals1 + model.extra_force_evals();
   r.jacobian_evals = sim.jacobian_evaluations() - jac1;
@@ -576,6 +652,16 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
           g.gradient[c] = gp;
           r.any_parameter = true;
           break;
+        case WrtValue::Kind::kMaterial: {
+          const MaterialGrad& m = a.material;
+          const auto k = static_cast<int64_t>(values[w].index);
+          const std::string& name = values[w].param;
+          g.gradient[c] = MaterialGrad::at(name == "restitution" ? m.restitution
+                                           : name == "friction"  ? m.friction
+                                                                 : m.kick,
+                                           k);
+          break;
+        }
       }
     }
     r.paths.push_back(std::move(g));
@@ -607,8 +693,10 @@ nlohmann::json GradientReport::to_json() const {
   nlohmann::json out = {
       {"loss", loss},
       {"loss_description", loss_text},
-      {"differentiable", findings.empty()},
+      {"differentiable", findings_count == 0},
       {"findings", f},
+      {"findings_count", findings_count},
+      {"impacts", impacts},
       {"paths", paths_json},
       {"backend", backend},
       {"integrator", integrator},

@@ -23,14 +23,15 @@ namespace pinsim::grad {
 /// One value named by a --wrt path, as the scene has it.
 struct WrtValue {
   enum class Kind : uint8_t {
-    kPosition,       ///< particles[I].x: the initial position of an explicit particle
-    kVelocity,       ///< particles[I].v: its initial velocity
-    kForceParameter  ///< forces[K].params.NAME: a real or 2-vector parameter of a force
+    kPosition,        ///< particles[I].x: the initial position of an explicit particle
+    kVelocity,        ///< particles[I].v: its initial velocity
+    kForceParameter,  ///< forces[K].params.NAME: a real or 2-vector parameter of a force
+    kMaterial         ///< obstacles[K].material.NAME: restitution, friction or kick of an obstacle
   };
   std::string path;  ///< as given, e.g. "forces[1].params.ks"
   Kind kind = Kind::kVelocity;
-  std::size_t index = 0;                       ///< the particle, or the force
-  std::string param;                           ///< the parameter's name (kForceParameter)
+  std::size_t index = 0;                       ///< the particle, the force or the obstacle
+  std::string param;                           ///< the parameter's or material's name
   std::vector<double> value;                   ///< its components
   double lower = -HUGE_VAL, upper = HUGE_VAL;  ///< its bounds (the plugin's parameter table)
 };
@@ -63,7 +64,10 @@ struct GradientReport {
   std::string loss_text;
   double loss = 0.0;
   std::vector<PathGradient> paths;
-  std::vector<Finding> findings;  ///< where the run is not differentiable, or close to it
+  std::vector<Finding> findings;  ///< where the run is not differentiable (the first kMaxFindings)
+  uint64_t findings_count = 0;    ///< all of them
+  uint64_t impacts = 0;           ///< velocity changes of the drifts differentiated through
+  static constexpr std::size_t kMaxFindings = 100;
   std::string backend, integrator;
   uint64_t steps = 0, segment = 0, checkpoints = 0, peak_states = 0;
   double forward_s = 0.0, backward_s = 0.0;                    ///< wall time of each pass

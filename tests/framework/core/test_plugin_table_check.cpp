@@ -53,7 +53,7 @@ struct ShortTable {
 
 }  // namespace
 
-TEST_CASE("table version: a table of this SDK states 4.2 and is read whole") {
+TEST_CASE("table version: a table of this SDK states 4.3 and is read whole") {
   const pinsim_plugin t = force_table();
   CHECK(pinsim::table_version(t).major == PINSIM_ABI_MAJOR);
   CHECK(pinsim::table_version(t).minor == PINSIM_ABI_MINOR);
@@ -84,7 +84,7 @@ TEST_CASE("table version: another major, a short table, a newer or a missing min
   t.abi_version = PINSIM_ABI_MAJOR + 1;
   CHECK_THAT(pinsim::table_version_problem(t),
              Contains("wrong plugin ABI version: plugin has 5, this pinsim expects 4") &&
-                 Contains("this pinsim has ABI 4.2 and loads plugins of ABI 4.0 to 4.2") &&
+                 Contains("this pinsim has ABI 4.3 and loads plugins of ABI 4.0 to 4.3") &&
                  Contains("built for a newer pinsim"));
   t.abi_version = PINSIM_ABI_MAJOR - 1;
   CHECK_THAT(pinsim::table_version_problem(t), Contains("plugin has 3, this pinsim expects 4") &&
@@ -96,7 +96,7 @@ TEST_CASE("table version: another major, a short table, a newer or a missing min
   t = force_table();
   t.abi_minor = PINSIM_ABI_MINOR + 1;
   CHECK_THAT(pinsim::table_version_problem(t),
-             Contains("plugin built against ABI 4.3, newer than this pinsim's 4.2"));
+             Contains("plugin built against ABI 4.4, newer than this pinsim's 4.3"));
   t.abi_minor = 0;  // holds abi_minor, but says 4.0
   CHECK_THAT(pinsim::table_version_problem(t),
              Contains("malformed plugin table: it holds abi_minor") && Contains("states minor 0"));

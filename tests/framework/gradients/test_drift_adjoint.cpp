@@ -152,6 +152,17 @@ TEST_CASE("drift adjoint: ball bouncing on a floor, closed form", "[gradients][d
   CHECK(gv(1, 0) == Approx(-e).epsilon(1e-12));
   CHECK(gx(1, 0) == Approx(0.0).margin(1e-12));
   CHECK(mv.restitution[0] == Approx(-vy).epsilon(1e-12));
+  // The same impulse with its time held fixed (an in-band impulse: d tau = 0, the unsplit
+  // step): y1 = y0 + vy tau - e vy (h - tau) moves with y0 one for one, dy1/dy0 = +1, the
+  // wrong sign against the runs' -e.
+  DriftTape unsplit = o.tape;
+  unsplit.impacts[0].kind = ImpactKind::kInBand;
+  unsplit.impacts[0].phi = unsplit.impacts[0].offset;  // on the offset: no push back
+  Eigen::Matrix2Xd ux = Eigen::Matrix2Xd::Zero(2, 1), uv = ux;
+  ux(1, 0) = 1.0;
+  MaterialGrad mu;
+  drift_adjoint(unsplit, ux, uv, nullptr, mu);
+  CHECK(ux(1, 0) == Approx(1.0).epsilon(1e-9));
 }
 
 TEST_CASE("drift adjoint: curved obstacle with friction and kick, central differences",

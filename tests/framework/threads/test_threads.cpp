@@ -3,7 +3,8 @@
 // Why they must be equal (docs/threads.md): the host limits oneTBB to N threads; the only
 // loops that use them split their work in chunks fixed by the item count
 // (pinsim/parallel.hpp). The sdf backend marches each particle with its own inputs (pair
-// contacts are scheduled serially first) and adds counters and events per chunk, in chunk
+// contacts are resolved first, in waves of hits that share no particle, each particle's hits
+// in their serial order) and adds counters and events per chunk, in chunk
 // order; the SDK's ConstraintSpring computes each element's terms apart and subtracts them
 // per particle in element order, the order of the serial loop. Implicit Euler's dot products
 // are summed per fixed chunk of 1024 particle rows, then over the chunks in order: a

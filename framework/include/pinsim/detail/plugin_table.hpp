@@ -80,6 +80,12 @@ template <class T>
 concept HasInput = requires(T& t, const std::string& name, bool pressed, double time) {
   t.input(name, pressed, time);
 };
+/// Optional (backends, ABI 4.3): record_drift(const pinsim_drift_sink*) -> record_drift;
+/// such a backend must declare PINSIM_CAP_DIFFERENTIABLE in its info().
+template <class T>
+concept HasRecordDrift = requires(T& t, const pinsim_drift_sink* sink) {
+  t.record_drift(sink);
+};
 template <class T>
 concept HasOutline = requires(const T& t, const StateView& s, double tolerance) {
   { t.outline(s, tolerance) } -> std::convertible_to<OutlineSet>;
@@ -272,6 +278,11 @@ const pinsim_plugin* make_table() {
             if (bounds != nullptr) *bounds = set.bounds;
             if (sweep != nullptr) *sweep = set.sweep;
           });
+        };
+      }
+      if constexpr (HasRecordDrift<T>) {
+        t.record_drift = [](void* self, const pinsim_drift_sink* sink, pinsim_error* err) noexcept {
+          return guarded(err, [&] { static_cast<T*>(self)->record_drift(sink); });
         };
       }
       if constexpr (HasInput<T>) {
