@@ -147,6 +147,12 @@ void StepChecks::copy_chunks(const Eigen::Matrix2Xd& from, Eigen::Matrix2Xd& to)
 
 namespace {
 bool finite(const Eigen::Vector2d& a) { return a.allFinite(); }
+/// The first particle of s with a non-finite position or velocity, or -1.
+Eigen::Index first_non_finite(const State& s) {
+  for (Eigen::Index i = 0; i < s.x.cols(); ++i)
+    if (!s.x.col(i).allFinite() || !s.v.col(i).allFinite()) return i;
+  return -1;
+}
 }  // namespace
 
 StepFinding StepChecks::after_substep_drift(const State& s) {
@@ -155,12 +161,10 @@ StepFinding StepChecks::after_substep_drift(const State& s) {
   StepFinding f;
   f.what = StepFinding::What::NonFinite;
   f.v_in.setZero();
-  for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
-    if (s.x.col(i).allFinite() && s.v.col(i).allFinite()) continue;
+  if (const Eigen::Index i = first_non_finite(s); i >= 0) {
     f.particle = i;
     f.v_in = v_sub_.col(i);
     f.phase = finite(f.v_in) ? StepFinding::Phase::Drift : StepFinding::Phase::BeforeDrift;
-    break;
   }
   return f;
 }
@@ -169,8 +173,7 @@ StepFinding StepChecks::non_finite(const State& s) const {
   StepFinding f;
   f.what = StepFinding::What::NonFinite;
   f.v_in.setZero();
-  for (Eigen::Index i = 0; i < s.x.cols(); ++i) {
-    if (s.x.col(i).allFinite() && s.v.col(i).allFinite()) continue;
+  if (const Eigen::Index i = first_non_finite(s); i >= 0) {
     f.particle = i;
     f.v_in = v_in_.col(i);
     // x changes only in the drift; v by the forces before it, the backend in it, and the
@@ -181,7 +184,6 @@ StepFinding StepChecks::non_finite(const State& s) const {
       f.phase = StepFinding::Phase::Drift;
     else
       f.phase = StepFinding::Phase::AfterDrift;
-    return f;
   }
   return f;
 }
