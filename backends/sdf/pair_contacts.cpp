@@ -3,22 +3,23 @@
 #include <algorithm>
 #include <cmath>
 #include <pinsim/parallel.hpp>
-#ifdef PINSIM_WITH_TBB
-#include <tbb/parallel_sort.h>
-#endif
 
 namespace pinsim::sdf {
 
 namespace {
-/// Particles per chunk of the per-particle loops; cells per chunk of the grid's scan; hits
+/// Particles per chunk of the per-particle loops; entries per chunk of the grid's scan; hits
 /// per chunk of a wave (any value gives the same bits).
 constexpr std::size_t kParticles = 1024;
-constexpr std::size_t kCells = 512;
+constexpr std::size_t kEntries = 512;
 constexpr std::size_t kWaveHits = 64;
 /// Hits from which a wave runs on threads: below it one thread resolves it faster than
 /// threads can be woken.
 constexpr std::size_t kParallelWave = 256;
 constexpr uint32_t kNoCell = ~0u;
+/// Hits from which order_hits sorts by buckets (below: std::sort); hits per task of its
+/// buckets' sorts on threads.
+constexpr std::size_t kBucketSort = 64;
+constexpr std::size_t kSortHits = 2048;
 /// Hits per task of the islands' resolution (a task ends at the first island boundary past it).
 constexpr uint32_t kIslandTask = 256;
 }  // namespace
@@ -47,7 +48,7 @@ void PairContacts::schedule(const MutableState& s, double dt, double e, bool thr
   tape_ = tape;
   if (tape_ != nullptr) threads = false;  // the tape takes the hits in their order
   find_hits(s, dt, threads);
-  order_hits(threads);
+  order_hits(s.n, threads, dt);
   resolve(s, dt, e, threads);
   collect(s, ev);
 }
@@ -113,7 +114,8 @@ void PairContacts::find_hits(const MutableState& s, double dt, bool threads) {
   const std::size_t cells = nx * ny;
   // Counting sort of the boxes by home cell, cells column by column (cell cx ny + cy), in
   // increasing particle index within a cell: a cell and the one above it, and the three
-  // cells of the next column beside them, are each one contiguous run.
+  // cells of the next column beside them, are each one contiguous run. Each entry carries
+  // its particle's box and, apart, its start state (the scan reads them in order).
   cell_start_.assign(cells + 1, 0);
   for (std::size_t i = 0; i < n; ++i) {
     if (cell_of_[i] == kNoCell) continue;
@@ -123,57 +125,82 @@ void PairContacts::find_hits(const MutableState& s, double dt, bool threads) {
     ++cell_start_[cell_of_[i] + 1];
   }
   for (std::size_t c = 0; c < cells; ++c) cell_start_[c + 1] += cell_start_[c];
-  sorted_.resize(cell_start_[cells]);
+  const std::size_t entries = cell_start_[cells];
+  sorted_.resize(entries);
+  sorted_body_.resize(entries);
   {
     std::vector<uint32_t>& fill = fill_;
     fill.assign(cell_start_.begin(), cell_start_.end() - 1);
-    for (std::size_t i = 0; i < n; ++i)
-      if (cell_of_[i] != kNoCell)
-        sorted_[fill[cell_of_[i]]++] = {boxes_[i], static_cast<uint32_t>(i)};
+    for (std::size_t i = 0; i < n; ++i) {
+      const uint32_t c = cell_of_[i];
+      if (c == kNoCell) continue;
+      const uint32_t k = fill[c]++;
+      // the runs of this cell's neighbours: up to the end of the cell above, and the cells
+      // of the next column from the row below to the row above
+      const std::size_t cx = c / ny, cy = c % ny, right = c + ny;
+      const uint32_t up = cell_start_[cy + 1 < ny ? c + 2 : c + 1];
+      const bool next = cx + 1 < nx;
+      const uint32_t b0 = next ? cell_start_[cy > 0 ? right - 1 : right] : 0;
+      const uint32_t b1 = next ? cell_start_[cy + 1 < ny ? right + 2 : right + 1] : 0;
+      sorted_[k] = {boxes_[i], static_cast<uint32_t>(i), up, b0, b1};
+      sorted_body_[k] = {ref_[i], s.radius[i], s.inv_mass[i]};
+    }
   }
-  // Each cell against itself and the neighbours (0, +1), (+1, -1), (+1, 0), (+1, +1).
-  const std::size_t cchunks = chunk_count(cells, kCells);
-  chunk_hits_.resize(cchunks);
-  chunk_candidates_.assign(cchunks, 0);
+  // Each entry against the later entries of its cell and the cell above, and the cells
+  // (+1, -1), (+1, 0), (+1, +1): each pair of cells at most one apart is seen once. The boxes
+  // that overlap are first gathered without branches, then tested.
+  const std::size_t echunks = chunk_count(entries, kEntries);
+  chunk_hits_.resize(echunks);
+  chunk_candidates_.assign(echunks, 0);
+  chunk_near_.resize(echunks);
   auto scan = [&](std::size_t c, std::size_t b, std::size_t end) {
     std::vector<Hit>& out = chunk_hits_[c];
+    std::vector<uint32_t>& near = chunk_near_[c];
     out.clear();
     std::size_t candidates = 0;
     const Sorted* box = sorted_.data();
-    auto test = [&](const Sorted& P, const Sorted& Q) {
-      const Box &A = P.box, &B = Q.box;
-      if (!(A.x0 <= B.x1 && B.x0 <= A.x1 && A.y0 <= B.y1 && B.y0 <= A.y1)) return;
-      const uint32_t i = std::min(P.id, Q.id), j = std::max(P.id, Q.id);
-      if (s.inv_mass[i] == 0.0 && s.inv_mass[j] == 0.0) return;
-      ++candidates;
-      double tau = 0.0;
-      if (toi(s, i, j, 0.0, dt, tau)) out.push_back({tau, i, j});
-    };
-    std::size_t cx = b / ny, cy = b % ny;
-    for (std::size_t cell = b; cell < end; ++cell, ++cy == ny ? (cy = 0, ++cx) : 0) {
-      const uint32_t a0 = cell_start_[cell], a1 = cell_start_[cell + 1];
-      if (a0 == a1) continue;
-      // this cell's later boxes and the cell above
-      const uint32_t up = cell_start_[cy + 1 < ny ? cell + 2 : cell + 1];
-      for (uint32_t a = a0; a < a1; ++a)
-        for (uint32_t q = a + 1; q < up; ++q) test(box[a], box[q]);
-      if (cx + 1 < nx) {  // the next column, from the row below to the row above
-        const std::size_t right = cell + ny;
-        const uint32_t b0 = cell_start_[cy > 0 ? right - 1 : right];
-        const uint32_t b1 = cell_start_[cy + 1 < ny ? right + 2 : right + 1];
-        for (uint32_t a = a0; a < a1; ++a)
-          for (uint32_t q = b0; q < b1; ++q) test(box[a], box[q]);
+    const Body* body = sorted_body_.data();
+    for (std::size_t a = b; a < end; ++a) {
+      const Box A = box[a].box;
+      const uint32_t up = box[a].up, b0 = box[a].b0, b1 = box[a].b1;
+      const std::size_t need = static_cast<std::size_t>(up - a - 1) + (b1 - b0);
+      if (near.size() < need) near.resize(need);
+      uint32_t* pick = near.data();
+      std::size_t k = 0;
+      auto gather = [&](uint32_t q0, uint32_t q1) {
+        for (uint32_t q = q0; q < q1; ++q) {
+          const Box& B = box[q].box;
+          pick[k] = q;
+          k += static_cast<unsigned>(A.x0 <= B.x1) & static_cast<unsigned>(B.x0 <= A.x1) &
+               static_cast<unsigned>(A.y0 <= B.y1) & static_cast<unsigned>(B.y0 <= A.y1);
+        }
+      };
+      gather(static_cast<uint32_t>(a + 1), up);
+      gather(b0, b1);
+      const Body& P = body[a];
+      const uint32_t ida = box[a].id;
+      for (std::size_t m = 0; m < k; ++m) {
+        const uint32_t q = pick[m];
+        const Body& Q = body[q];
+        if (P.w == 0.0 && Q.w == 0.0) continue;
+        ++candidates;
+        const uint32_t idq = box[q].id;
+        const bool first = ida < idq;
+        const Body &I = first ? P : Q, &J = first ? Q : P;
+        double tau = 0.0;
+        if (toi_refs(I.ref, J.ref, I.r + J.r, 0.0, dt, tau))
+          out.push_back({tau, first ? ida : idq, first ? idq : ida});
       }
     }
     chunk_candidates_[c] = candidates;
   };
   if (threads)
-    for_chunks(cells, kCells, scan);
+    for_chunks(entries, kEntries, scan);
   else
-    for (std::size_t c = 0; c < cchunks; ++c)
-      scan(c, c * kCells, std::min(cells, (c + 1) * kCells));
+    for (std::size_t c = 0; c < echunks; ++c)
+      scan(c, c * kEntries, std::min(entries, (c + 1) * kEntries));
   std::size_t total = 0;
-  for (std::size_t c = 0; c < cchunks; ++c) {
+  for (std::size_t c = 0; c < echunks; ++c) {
     total += chunk_hits_[c].size();
     counts_.candidates += chunk_candidates_[c];
   }
@@ -182,19 +209,91 @@ void PairContacts::find_hits(const MutableState& s, double dt, bool threads) {
   counts_.hits = hits_.size();
 }
 
-void PairContacts::order_hits(bool threads) {
+// The keys (tau, i, j) are unique, so any correct sort gives the same order. A counting sort
+// by a bucket of tau that never decreases with tau (tau = 0 alone in bucket 0, then
+// floor(tau B / dt) + 1, B = the number of hits), then each bucket sorted by the full key: a
+// few hits per bucket but those touching at the start (tau = 0).
+void PairContacts::order_hits(std::size_t n, bool threads, double dt) {
   auto before = [](const Hit& a, const Hit& b) {
     return a.tau < b.tau || (a.tau == b.tau && (a.i < b.i || (a.i == b.i && a.j < b.j)));
   };
-#ifdef PINSIM_WITH_TBB
-  if (threads && hits_.size() >= kParallelWave) {
-    tbb::parallel_sort(hits_.begin(), hits_.end(), before);
+  const std::size_t hits = hits_.size();
+  if (hits < kBucketSort) {
+    std::sort(hits_.begin(), hits_.end(), before);
     return;
   }
-#else
-  (void)threads;
-#endif
-  std::sort(hits_.begin(), hits_.end(), before);
+  const std::size_t buckets = hits + 1;
+  const double scale = static_cast<double>(hits) / dt;
+  auto bucket = [&](double tau) {
+    return tau > 0.0 ? std::min(hits, 1 + static_cast<std::size_t>(tau * scale)) : 0;
+  };
+  std::vector<uint32_t>& start = fill_;
+  start.assign(buckets + 1, 0);
+  for (const Hit& h : hits_) ++start[bucket(h.tau) + 1];
+  for (std::size_t k = 0; k < buckets; ++k) start[k + 1] += start[k];
+  bucket_start_.assign(start.begin(), start.end());
+  ordered_.resize(hits);
+  for (const Hit& h : hits_) ordered_[start[bucket(h.tau)]++] = h;
+  // each bucket in order: insertion sort for a few hits, else std::sort; on threads, runs of
+  // buckets of about kSortHits hits apart (each writes only its own buckets)
+  auto sort_buckets = [&](std::size_t k0, std::size_t k1) {
+    if (k0 == 0 && k1 > 0) {
+      sort_touching(n);
+      k0 = 1;
+    }
+    for (std::size_t k = k0; k < k1; ++k) {
+      Hit* b = ordered_.data() + bucket_start_[k];
+      Hit* e = ordered_.data() + bucket_start_[k + 1];
+      if (e - b > 16) {
+        std::sort(b, e, before);
+        continue;
+      }
+      for (Hit* p = b + 1; p < e; ++p)
+        for (Hit* q = p; q > b && before(*q, *(q - 1)); --q) std::swap(*q, *(q - 1));
+    }
+  };
+  if (threads && hits >= kParallelWave) {
+    const std::size_t parts = chunk_count(hits, kSortHits);
+    for_chunks(parts, 1, [&](std::size_t c, std::size_t, std::size_t) {
+      // the buckets whose first hit falls in [c kSortHits, (c + 1) kSortHits)
+      auto first = [&](std::size_t h) {
+        return static_cast<std::size_t>(
+            std::lower_bound(bucket_start_.begin(), bucket_start_.end() - 1, h) -
+            bucket_start_.begin());
+      };
+      sort_buckets(first(c * kSortHits), c + 1 == parts ? buckets : first((c + 1) * kSortHits));
+    });
+  } else {
+    sort_buckets(0, buckets);
+  }
+  hits_.swap(ordered_);
+}
+
+// Bucket 0 of order_hits (tau = 0: the hits that touch at the start) in order of (i, j): a
+// counting sort by i, then each run of one i (a particle's few neighbours) by j.
+void PairContacts::sort_touching(std::size_t n) {
+  Hit* b = ordered_.data();
+  const std::size_t count = bucket_start_[1];
+  if (count <= 16) {
+    std::sort(b, b + count,
+              [](const Hit& p, const Hit& q) { return p.i < q.i || (p.i == q.i && p.j < q.j); });
+    return;
+  }
+  std::vector<uint32_t>& start = touch_start_;
+  start.assign(n + 1, 0);
+  for (std::size_t h = 0; h < count; ++h) ++start[b[h].i + 1];
+  for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
+  touching_.resize(count);
+  for (std::size_t h = 0; h < count; ++h) touching_[start[b[h].i]++] = b[h];
+  for (std::size_t h = 0; h < count;) {  // runs of one i (start[i] now ends i's run)
+    const uint32_t i = touching_[h].i;
+    const std::size_t e = start[i];
+    for (std::size_t p = h + 1; p < e; ++p)
+      for (std::size_t q = p; q > h && touching_[q].j < touching_[q - 1].j; --q)
+        std::swap(touching_[q], touching_[q - 1]);
+    h = e;
+  }
+  std::copy(touching_.begin(), touching_.end(), b);
 }
 
 // The time of impact of two discs in linear motion, |dx + dv tau| = r_i + r_j:
@@ -203,10 +302,13 @@ void PairContacts::order_hits(bool threads) {
 // cancellation); already touching (c <= 0) and approaching: tau0.
 inline bool PairContacts::toi(const MutableState& s, uint32_t i, uint32_t j, double tau0, double dt,
                               double& tau) const {
-  const Ref &ri = ref_[i], &rj = ref_[j];
+  return toi_refs(ref_[i], ref_[j], s.radius[i] + s.radius[j], tau0, dt, tau);
+}
+
+bool PairContacts::toi_refs(const Ref& ri, const Ref& rj, double rr, double tau0, double dt,
+                            double& tau) {
   const Vec2 pi = ri.xr + ri.vc * (tau0 - ri.tr), pj = rj.xr + rj.vc * (tau0 - rj.tr);
   const Vec2 dx = pi - pj, dv = ri.vc - rj.vc;
-  const double rr = s.radius[i] + s.radius[j];
   const double a = dv.squaredNorm(), b = dx.dot(dv), c = dx.squaredNorm() - rr * rr;
   if (b >= 0.0) return false;  // not approaching
   if (c <= 0.0) {

@@ -54,10 +54,11 @@ class PairContacts {
   struct Box {
     double x0, x1, y0, y1;
   };
-  /// A box in the grid's order, with its particle.
+  /// A box in the grid's order, with its particle and the entries to compare it with:
+  /// [this + 1, up) and [b0, b1).
   struct Sorted {
     Box box;
-    uint32_t id;
+    uint32_t id, up, b0, b1;
   };
   /// A pair (i < j) that meets at tau (time into the step) with the velocities at the start.
   struct Hit {
@@ -69,6 +70,11 @@ class PairContacts {
     Vec2 xr, vc;
     double tr;
   };
+  /// A particle's start state in the grid's order: reference state, radius, inverse mass.
+  struct Body {
+    Ref ref;
+    double r, w;
+  };
   /// What resolving one hit gave: whether it fired, its impulses and its event.
   struct Outcome {
     double tau;
@@ -78,13 +84,17 @@ class PairContacts {
   };
 
   void find_hits(const MutableState& s, double dt, bool threads);
-  void order_hits(bool threads);
+  void order_hits(std::size_t n, bool threads, double dt);
+  void sort_touching(std::size_t n);
   void resolve(const MutableState& s, double dt, double e, bool threads);
   bool resolve_islands(const MutableState& s, double dt, double e);
   void collect(const MutableState& s, EventSink& ev);
   /// Time of impact after tau0 of i and j moving linearly from their reference states.
   bool toi(const MutableState& s, uint32_t i, uint32_t j, double tau0, double dt,
            double& tau) const;
+  /// The same from the two reference states and the sum of the radii rr.
+  static inline bool toi_refs(const Ref& ri, const Ref& rj, double rr, double tau0, double dt,
+                              double& tau);
   /// Resolves hit h from the reference states of its particles (updating them).
   void resolve_hit(const MutableState& s, std::size_t h, double dt, double e);
 
@@ -93,9 +103,15 @@ class PairContacts {
   std::vector<uint32_t> cell_of_;     ///< per particle: its box's home cell (~0u: none)
   std::vector<uint32_t> cell_start_;  ///< per cell: first entry in by_cell_
   std::vector<Sorted> sorted_;        ///< boxes by cell, in increasing index per cell
+  std::vector<Body> sorted_body_;     ///< the same particles' start states
+  std::vector<std::vector<uint32_t>> chunk_near_;  ///< per scan chunk: overlapping entries
   std::vector<std::vector<Hit>> chunk_hits_;
   std::vector<std::size_t> chunk_candidates_;
   std::vector<Hit> hits_;                  ///< in order of (tau, i, j)
+  std::vector<Hit> ordered_;               ///< order_hits()'s buckets
+  std::vector<uint32_t> bucket_start_;     ///< per bucket of order_hits(): first hit
+  std::vector<Hit> touching_;              ///< sort_touching()'s hits by i
+  std::vector<uint32_t> touch_start_;      ///< sort_touching()'s runs of one i
   std::vector<Outcome> outcome_;           ///< per hit
   std::vector<uint32_t> level_of_;         ///< per hit: its wave
   std::vector<uint32_t> last_level_;       ///< per particle: wave of its last hit so far
