@@ -166,11 +166,16 @@ struct TransposedProduct {
             },
             [](void* p, const uint32_t* particles, const double* v, uint64_t count) {
               auto* t = static_cast<TransposedProduct*>(p);
+              const double* w = t->w;
+              double* out = t->out;
               for (uint64_t k = 0; k < count; ++k, v += 4) {
-                const double* wi = t->w + 2 * static_cast<std::size_t>(particles[2 * k]);
-                double* oj = t->out + 2 * static_cast<std::size_t>(particles[2 * k + 1]);
-                oj[0] += v[0] * wi[0] + v[1] * wi[1];
-                oj[1] += v[2] * wi[0] + v[3] * wi[1];
+                // w_i read before out_j is written (they may be the same particle's)
+                const std::size_t i = 2 * static_cast<std::size_t>(particles[2 * k]);
+                const std::size_t j = 2 * static_cast<std::size_t>(particles[2 * k + 1]);
+                const double w0 = w[i], w1 = w[i + 1];
+                const double o0 = v[0] * w0 + v[1] * w1, o1 = v[2] * w0 + v[3] * w1;
+                out[j] += o0;
+                out[j + 1] += o1;
               }
             }};
   }
