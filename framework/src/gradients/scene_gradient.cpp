@@ -238,12 +238,7 @@ class SimulationForces : public ForceModel {
   void vjp(const State& s, const Eigen::Matrix2Xd& w, Eigen::Matrix2Xd& gx,
            Eigen::Matrix2Xd& gv) override {
     if (all_exact_) {
-      // the plugins' entries straight into the products, no matrix assembled
-      const pinsim_state_view view = s.view();
-      TransposedProduct px{w.data(), gx.data()}, pv{w.data(), gv.data()};
-      const pinsim_triplet_sink sx = px.sink(), sv = pv.sink();
-      for (const auto& f : sim_.forces())
-        f->add_jacobians(view, &sx, f->provides_dfdv() ? &sv : nullptr);
+      vjp_part(Part::kAll, s, w, gx, gv);
       return;
     }
     cache(s);
@@ -253,11 +248,37 @@ class SimulationForces : public ForceModel {
   }
 
   void param_vjp(const State& s, const Eigen::Matrix2Xd& w, Eigen::VectorXd& gp) override {
+    param_vjp_part(Part::kAll, s, w, gp);
+  }
+
+  /// With every force's Jacobians from its plugin: the products force by force.
+  bool splits() const override { return all_exact_; }
+
+  void vjp_part(Part part, const State& s, const Eigen::Matrix2Xd& w, Eigen::Matrix2Xd& gx,
+                Eigen::Matrix2Xd& gv) override {
+    if (!all_exact_) {
+      ForceModel::vjp_part(part, s, w, gx, gv);
+      return;
+    }
+    // the plugins' entries straight into the products, no matrix assembled; a force that
+    // depends on the positions only has df/dv = 0
+    const pinsim_state_view view = s.view();
+    TransposedProduct px{w.data(), gx.data()}, pv{w.data(), gv.data()};
+    const pinsim_triplet_sink sx = px.sink(), sv = pv.sink();
+    for (const auto& f : sim_.forces())
+      if (in_part(*f, part))
+        f->add_jacobians(view, &sx,
+                         f->provides_dfdv() && part != Part::kPositionOnly ? &sv : nullptr);
+  }
+
+  void param_vjp_part(Part part, const State& s, const Eigen::Matrix2Xd& w,
+                      Eigen::VectorXd& gp) override {
     if (entries_.empty()) return;
     const pinsim_state_view view = s.view();
     Eigen::Matrix2Xd& fp = fp_;
     Eigen::Matrix2Xd& fm = fm_;
     for (const Entry& e : entries_) {
+      if (!in_part(*sim_.forces()[e.force], part)) continue;
       fp.setZero(2, s.x.cols());
       fm.setZero(2, s.x.cols());
       e.plus->add_force(view, fp.data());
@@ -313,6 +334,10 @@ class SimulationForces : public ForceModel {
     std::unique_ptr<ForceInstance> plus, minus;
     double denominator = 1.0;
   };
+
+  static bool in_part(const ForceInstance& f, Part part) {
+    return part == Part::kAll || f.velocity_dependent() == (part == Part::kVelocityDependent);
+  }
 
   static nlohmann::json moved(const WrtValue& v, int c, double x) {
     if (v.value.size() == 1) return x;
@@ -626,6 +651,7 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
                            scale;
         r.replay_deviation = std::max(r.replay_deviation, std::isnan(dev) ? HUGE_VAL : dev);
       });
+  adjoint_finish(model, a);
   if (loss->has_term(0)) loss->term(0, initial, a.gx, a.gv);
   recording.reset();
   r.backward_s = seconds_since(t0);
