@@ -425,6 +425,41 @@ class SimulationForces : public ForceModel {
   bool have_ = false;
 };
 
+/// The forces that the replay of a step evaluated (Simulation::set_force_observer), kept in
+/// storage reused from step to step.
+class SeenForces {
+ public:
+  void clear() { count_ = 0; }
+  void add(const State& s, const Eigen::Matrix2Xd& f) {
+    if (count_ == seen_.size()) seen_.emplace_back();
+    Seen& e = seen_[count_++];
+    e.t = s.t;
+    e.x = s.x;
+    e.v = s.v;
+    e.f = f;
+  }
+  /// f = the force the replay evaluated at (t, x, v), bit for bit; false if it did not.
+  bool find(double t, const Eigen::Matrix2Xd& x, const Eigen::Matrix2Xd& v,
+            Eigen::Matrix2Xd& f) const {
+    for (std::size_t k = 0; k < count_; ++k) {
+      const Seen& e = seen_[k];
+      if (e.t == t && e.x.cols() == x.cols() && e.x == x && e.v == v) {
+        f = e.f;
+        return true;
+      }
+    }
+    return false;
+  }
+
+ private:
+  struct Seen {
+    double t = 0.0;
+    Eigen::Matrix2Xd x, v, f;
+  };
+  std::vector<Seen> seen_;
+  std::size_t count_ = 0;
+};
+
 /// The velocities leaving a recorded drift: each particle's after its last change.
 Eigen::Matrix2Xd drift_velocities(const DriftTape& d) {
   Eigen::Matrix2Xd v = d.v_in;
@@ -441,7 +476,7 @@ Eigen::Matrix2Xd drift_velocities(const DriftTape& d) {
 /// a0 = M^-1 f(x0, v0), c_k = clamp(-(vn_after - vn_before) / vn_before, 1, 2)) and its
 /// closing predictor.
 void fill_tape(Scheme scheme, ForceModel& forces, const State& end, double h, bool recorded,
-               StepTape& tape) {
+               const SeenForces& seen, StepTape& tape) {
   const State& start = tape.start;
   DriftTape& d = tape.drift;
   if (!recorded) {
@@ -458,8 +493,9 @@ void fill_tape(Scheme scheme, ForceModel& forces, const State& end, double h, bo
     if (!recorded) d.v_in = end.v;
     return;
   }
+  // the forces at (x0, v0) and (x1, vc): the replay's, or evaluated again
   Eigen::Matrix2Xd f;
-  forces.force(start, f);
+  if (!seen.find(start.t, start.x, start.v, f)) forces.force(start, f);
   if (!recorded) {
     d.v_in = start.v;
     for (Eigen::Index i = 0; i < f.cols(); ++i)
@@ -476,10 +512,12 @@ void fill_tape(Scheme scheme, ForceModel& forces, const State& end, double h, bo
     tape.vc.col(i) -= c * (m.tau - 0.5 * h) * (start.inv_mass[i] * f.col(i)).dot(m.n) * m.n;
   }
   if (forces.velocity_dependent()) {
-    State s1 = start;
-    s1.x = end.x;
-    s1.v = tape.vc;
-    forces.force(s1, f);
+    if (!seen.find(start.t, end.x, tape.vc, f)) {
+      State s1 = start;
+      s1.x = end.x;
+      s1.v = tape.vc;
+      forces.force(s1, f);
+    }
     tape.vp = tape.vc;
     for (Eigen::Index i = 0; i < f.cols(); ++i)
       tape.vp.col(i) += (0.5 * h * start.inv_mass[i]) * f.col(i);
@@ -612,6 +650,11 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
     if (r.findings.size() < GradientReport::kMaxFindings) r.findings.push_back(f);
     ++r.findings_count;
   };
+  // velocity Verlet's tape needs the forces at the step's start and after its drift, which
+  // the replay has just evaluated
+  SeenForces seen;
+  if (scheme == Scheme::kVelocityVerlet)
+    sim.set_force_observer([&seen](const State& s, const Eigen::Matrix2Xd& f) { seen.add(s, f); });
   t0 = Clock::now();
   backward_pass<Checkpoint, StepTape>(
       plan, checkpoints,
@@ -623,11 +666,12 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
       [&](StepTape* tape) {
         tape->start = sim.state();  // into the tape's own storage, reused segment after segment
         if (recording) recording->into(&tape->drift);
+        seen.clear();
         replay->step(sim, h);
         ++cur;
         sim.state().t = static_cast<double>(cur) * h;
         const bool recorded = recording && recording->began();
-        fill_tape(scheme, model, sim.state(), h, recorded, *tape);
+        fill_tape(scheme, model, sim.state(), h, recorded, seen, *tape);
         if (recorded) {
           std::vector<Finding> found = tape->drift.findings;
           assess_impacts(tape->drift, found);
@@ -651,6 +695,7 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
                            scale;
         r.replay_deviation = std::max(r.replay_deviation, std::isnan(dev) ? HUGE_VAL : dev);
       });
+  sim.set_force_observer({});
   adjoint_finish(model, a);
   if (loss->has_term(0)) loss->term(0, initial, a.gx, a.gv);
   recording.reset();
