@@ -43,8 +43,11 @@ struct Adjoint {
   Eigen::Matrix2Xd pending_w;
   State pending_at;
   bool pending = false;
-  /// Scratch states reused from step to step.
-  State scratch1, scratch2;
+  /// Storage of the adjoint steps, reused from step to step (no allocation per step).
+  struct Scratch {
+    State s1, s2;
+    Eigen::Matrix2Xd gx1, vc_bar, vp_bar, w, w_pos, a0_bar, unused;
+  } scratch;
 
   /// Zero adjoints for n particles and p parameter components.
   void reset(Eigen::Index n, Eigen::Index p);
