@@ -208,13 +208,22 @@ void Bending::add_dfdx(const StateView& s, Triplets& J) const {
     const Mat2 hbb =
         -(pb * n * bh.transpose() + bh * n.transpose() * pb + bh.dot(n) * pb) / (lb * lb);
     const Mat2 hab = pa * M * pb / (la * lb);
-    const double da[3] = {-1.0, 1.0, 0.0}, db[3] = {0.0, -1.0, 1.0};
-    for (int i = 0; i < 3; ++i)
-      for (int j = 0; j < 3; ++j) {
-        const Mat2 blk = da[i] * da[j] * haa + da[i] * db[j] * hab +
-                         db[i] * da[j] * hab.transpose() + db[i] * db[j] * hbb;
-        J.add_block(p[i], p[j], 0.5 * k_of(e) * blk);
-      }
+    const Mat2 hba = hab.transpose();
+    // block (i, j) = da_i da_j haa + da_i db_j hab + db_i da_j hba + db_i db_j hbb with
+    // da = (-1, 1, 0), db = (0, -1, 1): the nonzero terms only, in that order
+    const double h = 0.5 * k_of(e);
+    auto add = [&](int i, int j, const Mat2& blk) {
+      J.add_block(p[i], p[j], h * blk(0, 0), h * blk(1, 0), h * blk(0, 1), h * blk(1, 1));
+    };
+    add(0, 0, haa);
+    add(0, 1, -haa + hab);
+    add(0, 2, -hab);
+    add(1, 0, -haa + hba);
+    add(1, 1, haa - hab - hba + hbb);
+    add(1, 2, hab - hbb);
+    add(2, 0, -hba);
+    add(2, 1, hba - hbb);
+    add(2, 2, hbb);
   }
 }
 

@@ -140,15 +140,16 @@ void Simulation::compute_forces(const State& s, Eigen::Matrix2Xd& f,
   ++force_evals_;
   if (one_chunk) {
     if (!f.allFinite()) check_finite_forces(s, f);
-    return;
+  } else {
+    // whether every force is finite, per chunk (a flag: no order to keep); the search for
+    // the culprit runs only when one is not
+    std::atomic<bool> non_finite{false};
+    per_particle(n, [&](Eigen::Index b, Eigen::Index k) {
+      if (!f.middleCols(b, k).allFinite()) non_finite.store(true, std::memory_order_relaxed);
+    });
+    if (non_finite.load(std::memory_order_relaxed)) check_finite_forces(s, f);
   }
-  // whether every force is finite, per chunk (a flag: no order to keep); the search for the
-  // culprit runs only when one is not
-  std::atomic<bool> non_finite{false};
-  per_particle(n, [&](Eigen::Index b, Eigen::Index k) {
-    if (!f.middleCols(b, k).allFinite()) non_finite.store(true, std::memory_order_relaxed);
-  });
-  if (non_finite.load(std::memory_order_relaxed)) check_finite_forces(s, f);
+  if (force_observer_ && include == nullptr) force_observer_(s, f);
 }
 
 std::span<const pinsim_event> Simulation::drift(State& s, double dt) {

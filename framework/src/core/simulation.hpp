@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <pinsim/state.hpp>
 #include <span>
@@ -112,6 +113,11 @@ class Simulation {
   /// of the forces k with (*include)[k] != 0 only.
   void compute_forces(const State& s, Eigen::Matrix2Xd& f,
                       const std::vector<char>* include = nullptr);
+  /// Called after every compute_forces of all the forces (not one with `include`) with the
+  /// state and the total force; empty: none. The adjoint's replay keeps the forces of the
+  /// step it replays, so as not to evaluate them again.
+  using ForceObserver = std::function<void(const State&, const Eigen::Matrix2Xd&)>;
+  void set_force_observer(ForceObserver observer) { force_observer_ = std::move(observer); }
   /// The backend's position update of s over dt, no checks: appends its contacts to
   /// events() and returns them (valid until events() changes).
   std::span<const pinsim_event> drift(State& s, double dt);
@@ -194,6 +200,7 @@ class Simulation {
   std::vector<pinsim_event> events_;
   uint64_t step_ = 0;
   uint64_t force_evals_ = 0;
+  ForceObserver force_observer_;
   uint64_t jacobian_evals_ = 0;
   /// per force: finite-difference warning already given (bytes, not vector<bool>: forces'
   /// Jacobians may be asked for on two threads at once, jacobians_of)

@@ -4,12 +4,18 @@
 
 #include <Eigen/Core>
 #include <Eigen/SparseCore>
+#include <cstdint>
 #include <pinsim/state.hpp>
+#include <stdexcept>
 
 namespace pinsim::grad {
 
 class ForceModel {
  public:
+  /// Which forces a product covers: all of them, those that may depend on the velocities,
+  /// or the others (their values and Jacobians depend on the positions only, df/dv = 0).
+  enum class Part : uint8_t { kAll, kVelocityDependent, kPositionOnly };
+
   virtual ~ForceModel() = default;
   /// f = the total force at s (2xN).
   virtual void force(const State& s, Eigen::Matrix2Xd& f) = 0;
@@ -23,6 +29,22 @@ class ForceModel {
                          Eigen::SparseMatrix<double>& D) = 0;
   /// Whether some force may depend on the velocities (velocity Verlet's predictor runs then).
   virtual bool velocity_dependent() const = 0;
+  /// Whether vjp_part and param_vjp_part take a part other than kAll.
+  virtual bool splits() const { return false; }
+  /// vjp over the forces of `part` only (kPositionOnly: gv is left as it is).
+  virtual void vjp_part(Part part, const State& s, const Eigen::Matrix2Xd& w, Eigen::Matrix2Xd& gx,
+                        Eigen::Matrix2Xd& gv) {
+    if (part != Part::kAll)
+      throw std::logic_error("ForceModel: vjp_part of a model that does not split");
+    vjp(s, w, gx, gv);
+  }
+  /// param_vjp over the forces of `part` only.
+  virtual void param_vjp_part(Part part, const State& s, const Eigen::Matrix2Xd& w,
+                              Eigen::VectorXd& gp) {
+    if (part != Part::kAll)
+      throw std::logic_error("ForceModel: param_vjp_part of a model that does not split");
+    param_vjp(s, w, gp);
+  }
   /// gp += d/dtheta [w^T (K a + D c)] at s: the Jacobian products' derivatives in the
   /// parameters along the directions a (of x) and c (of v). By default the directional
   /// derivative d/deps [(df/dtheta)(x + eps a, v + eps c)^T w] by central differences of

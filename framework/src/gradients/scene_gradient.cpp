@@ -166,11 +166,16 @@ struct TransposedProduct {
             },
             [](void* p, const uint32_t* particles, const double* v, uint64_t count) {
               auto* t = static_cast<TransposedProduct*>(p);
+              const double* w = t->w;
+              double* out = t->out;
               for (uint64_t k = 0; k < count; ++k, v += 4) {
-                const double* wi = t->w + 2 * static_cast<std::size_t>(particles[2 * k]);
-                double* oj = t->out + 2 * static_cast<std::size_t>(particles[2 * k + 1]);
-                oj[0] += v[0] * wi[0] + v[1] * wi[1];
-                oj[1] += v[2] * wi[0] + v[3] * wi[1];
+                // w_i read before out_j is written (they may be the same particle's)
+                const std::size_t i = 2 * static_cast<std::size_t>(particles[2 * k]);
+                const std::size_t j = 2 * static_cast<std::size_t>(particles[2 * k + 1]);
+                const double w0 = w[i], w1 = w[i + 1];
+                const double o0 = v[0] * w0 + v[1] * w1, o1 = v[2] * w0 + v[3] * w1;
+                out[j] += o0;
+                out[j + 1] += o1;
               }
             }};
   }
@@ -233,12 +238,7 @@ class SimulationForces : public ForceModel {
   void vjp(const State& s, const Eigen::Matrix2Xd& w, Eigen::Matrix2Xd& gx,
            Eigen::Matrix2Xd& gv) override {
     if (all_exact_) {
-      // the plugins' entries straight into the products, no matrix assembled
-      const pinsim_state_view view = s.view();
-      TransposedProduct px{w.data(), gx.data()}, pv{w.data(), gv.data()};
-      const pinsim_triplet_sink sx = px.sink(), sv = pv.sink();
-      for (const auto& f : sim_.forces())
-        f->add_jacobians(view, &sx, f->provides_dfdv() ? &sv : nullptr);
+      vjp_part(Part::kAll, s, w, gx, gv);
       return;
     }
     cache(s);
@@ -248,11 +248,37 @@ class SimulationForces : public ForceModel {
   }
 
   void param_vjp(const State& s, const Eigen::Matrix2Xd& w, Eigen::VectorXd& gp) override {
+    param_vjp_part(Part::kAll, s, w, gp);
+  }
+
+  /// With every force's Jacobians from its plugin: the products force by force.
+  bool splits() const override { return all_exact_; }
+
+  void vjp_part(Part part, const State& s, const Eigen::Matrix2Xd& w, Eigen::Matrix2Xd& gx,
+                Eigen::Matrix2Xd& gv) override {
+    if (!all_exact_) {
+      ForceModel::vjp_part(part, s, w, gx, gv);
+      return;
+    }
+    // the plugins' entries straight into the products, no matrix assembled; a force that
+    // depends on the positions only has df/dv = 0
+    const pinsim_state_view view = s.view();
+    TransposedProduct px{w.data(), gx.data()}, pv{w.data(), gv.data()};
+    const pinsim_triplet_sink sx = px.sink(), sv = pv.sink();
+    for (const auto& f : sim_.forces())
+      if (in_part(*f, part))
+        f->add_jacobians(view, &sx,
+                         f->provides_dfdv() && part != Part::kPositionOnly ? &sv : nullptr);
+  }
+
+  void param_vjp_part(Part part, const State& s, const Eigen::Matrix2Xd& w,
+                      Eigen::VectorXd& gp) override {
     if (entries_.empty()) return;
     const pinsim_state_view view = s.view();
     Eigen::Matrix2Xd& fp = fp_;
     Eigen::Matrix2Xd& fm = fm_;
     for (const Entry& e : entries_) {
+      if (!in_part(*sim_.forces()[e.force], part)) continue;
       fp.setZero(2, s.x.cols());
       fm.setZero(2, s.x.cols());
       e.plus->add_force(view, fp.data());
@@ -308,6 +334,10 @@ class SimulationForces : public ForceModel {
     std::unique_ptr<ForceInstance> plus, minus;
     double denominator = 1.0;
   };
+
+  static bool in_part(const ForceInstance& f, Part part) {
+    return part == Part::kAll || f.velocity_dependent() == (part == Part::kVelocityDependent);
+  }
 
   static nlohmann::json moved(const WrtValue& v, int c, double x) {
     if (v.value.size() == 1) return x;
@@ -395,6 +425,41 @@ class SimulationForces : public ForceModel {
   bool have_ = false;
 };
 
+/// The forces that the replay of a step evaluated (Simulation::set_force_observer), kept in
+/// storage reused from step to step.
+class SeenForces {
+ public:
+  void clear() { count_ = 0; }
+  void add(const State& s, const Eigen::Matrix2Xd& f) {
+    if (count_ == seen_.size()) seen_.emplace_back();
+    Seen& e = seen_[count_++];
+    e.t = s.t;
+    e.x = s.x;
+    e.v = s.v;
+    e.f = f;
+  }
+  /// f = the force the replay evaluated at (t, x, v), bit for bit; false if it did not.
+  bool find(double t, const Eigen::Matrix2Xd& x, const Eigen::Matrix2Xd& v,
+            Eigen::Matrix2Xd& f) const {
+    for (std::size_t k = 0; k < count_; ++k) {
+      const Seen& e = seen_[k];
+      if (e.t == t && e.x.cols() == x.cols() && e.x == x && e.v == v) {
+        f = e.f;
+        return true;
+      }
+    }
+    return false;
+  }
+
+ private:
+  struct Seen {
+    double t = 0.0;
+    Eigen::Matrix2Xd x, v, f;
+  };
+  std::vector<Seen> seen_;
+  std::size_t count_ = 0;
+};
+
 /// The velocities leaving a recorded drift: each particle's after its last change.
 Eigen::Matrix2Xd drift_velocities(const DriftTape& d) {
   Eigen::Matrix2Xd v = d.v_in;
@@ -411,7 +476,7 @@ Eigen::Matrix2Xd drift_velocities(const DriftTape& d) {
 /// a0 = M^-1 f(x0, v0), c_k = clamp(-(vn_after - vn_before) / vn_before, 1, 2)) and its
 /// closing predictor.
 void fill_tape(Scheme scheme, ForceModel& forces, const State& end, double h, bool recorded,
-               StepTape& tape) {
+               const SeenForces& seen, StepTape& tape) {
   const State& start = tape.start;
   DriftTape& d = tape.drift;
   if (!recorded) {
@@ -428,8 +493,9 @@ void fill_tape(Scheme scheme, ForceModel& forces, const State& end, double h, bo
     if (!recorded) d.v_in = end.v;
     return;
   }
+  // the forces at (x0, v0) and (x1, vc): the replay's, or evaluated again
   Eigen::Matrix2Xd f;
-  forces.force(start, f);
+  if (!seen.find(start.t, start.x, start.v, f)) forces.force(start, f);
   if (!recorded) {
     d.v_in = start.v;
     for (Eigen::Index i = 0; i < f.cols(); ++i)
@@ -446,10 +512,12 @@ void fill_tape(Scheme scheme, ForceModel& forces, const State& end, double h, bo
     tape.vc.col(i) -= c * (m.tau - 0.5 * h) * (start.inv_mass[i] * f.col(i)).dot(m.n) * m.n;
   }
   if (forces.velocity_dependent()) {
-    State s1 = start;
-    s1.x = end.x;
-    s1.v = tape.vc;
-    forces.force(s1, f);
+    if (!seen.find(start.t, end.x, tape.vc, f)) {
+      State s1 = start;
+      s1.x = end.x;
+      s1.v = tape.vc;
+      forces.force(s1, f);
+    }
     tape.vp = tape.vc;
     for (Eigen::Index i = 0; i < f.cols(); ++i)
       tape.vp.col(i) += (0.5 * h * start.inv_mass[i]) * f.col(i);
@@ -582,6 +650,11 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
     if (r.findings.size() < GradientReport::kMaxFindings) r.findings.push_back(f);
     ++r.findings_count;
   };
+  // velocity Verlet's tape needs the forces at the step's start and after its drift, which
+  // the replay has just evaluated
+  SeenForces seen;
+  if (scheme == Scheme::kVelocityVerlet)
+    sim.set_force_observer([&seen](const State& s, const Eigen::Matrix2Xd& f) { seen.add(s, f); });
   t0 = Clock::now();
   backward_pass<Checkpoint, StepTape>(
       plan, checkpoints,
@@ -593,11 +666,12 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
       [&](StepTape* tape) {
         tape->start = sim.state();  // into the tape's own storage, reused segment after segment
         if (recording) recording->into(&tape->drift);
+        seen.clear();
         replay->step(sim, h);
         ++cur;
         sim.state().t = static_cast<double>(cur) * h;
         const bool recorded = recording && recording->began();
-        fill_tape(scheme, model, sim.state(), h, recorded, *tape);
+        fill_tape(scheme, model, sim.state(), h, recorded, seen, *tape);
         if (recorded) {
           std::vector<Finding> found = tape->drift.findings;
           assess_impacts(tape->drift, found);
@@ -621,6 +695,8 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
                            scale;
         r.replay_deviation = std::max(r.replay_deviation, std::isnan(dev) ? HUGE_VAL : dev);
       });
+  sim.set_force_observer({});
+  adjoint_finish(model, a);
   if (loss->has_term(0)) loss->term(0, initial, a.gx, a.gv);
   recording.reset();
   r.backward_s = seconds_since(t0);

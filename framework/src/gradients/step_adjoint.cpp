@@ -6,28 +6,32 @@
 namespace pinsim::grad {
 namespace {
 
-/// w = c M^-1 g per particle (0 for pinned particles, inv_mass 0).
-Eigen::Matrix2Xd scaled_by_inv_mass(const State& s, const Eigen::Matrix2Xd& g, double c) {
-  Eigen::Matrix2Xd w(2, g.cols());
+/// w = c M^-1 g per particle (0 for pinned particles, inv_mass 0), into w's storage.
+void scaled_by_inv_mass(const State& s, const Eigen::Matrix2Xd& g, double c, Eigen::Matrix2Xd& w) {
+  w.resize(2, g.cols());
   for (Eigen::Index i = 0; i < g.cols(); ++i) w.col(i) = (c * s.inv_mass[i]) * g.col(i);
-  return w;
 }
 
-/// The adjoint of a kick v' = v + w (w = c M^-1 f(s)): with wbar = c M^-1 vbar', adds
-/// (df/dx)^T wbar to gx, (df/dv)^T wbar to gv and (df/dtheta)^T wbar to gp at s.
-void kick_adjoint(ForceModel& forces, const State& s, const Eigen::Matrix2Xd& vbar, double c,
-                  Eigen::Matrix2Xd& gx, Eigen::Matrix2Xd& gv, Eigen::VectorXd& gp) {
-  const Eigen::Matrix2Xd w = scaled_by_inv_mass(s, vbar, c);
-  forces.vjp(s, w, gx, gv);
-  forces.param_vjp(s, w, gp);
-}
-
-/// A state with s's masses and radii at (x, v).
-State at(const State& s, const Eigen::Matrix2Xd& x, const Eigen::Matrix2Xd& v) {
-  State out = s;
+/// out = a state with s's masses and radii at (x, v) (out's storage reused).
+const State& at(const State& s, const Eigen::Matrix2Xd& x, const Eigen::Matrix2Xd& v, State& out) {
+  out.t = s.t;
   out.x = x;
   out.v = v;
+  out.inv_mass = s.inv_mass;
+  out.radius = s.radius;
   return out;
+}
+
+using Part = ForceModel::Part;
+
+/// Adds the pending product of the position-only forces into gx and gp.
+void flush_pending(ForceModel& forces, Adjoint& a, Eigen::Matrix2Xd& gx) {
+  if (!a.pending) return;
+  Eigen::Matrix2Xd& unused = a.scratch.unused;
+  unused.setZero(2, a.pending_w.cols());
+  forces.vjp_part(Part::kPositionOnly, a.pending_at, a.pending_w, gx, unused);
+  forces.param_vjp_part(Part::kPositionOnly, a.pending_at, a.pending_w, a.gp);
+  a.pending = false;
 }
 
 }  // namespace
@@ -53,13 +57,19 @@ void Adjoint::reset(Eigen::Index n, Eigen::Index p) {
   gv.setZero(2, n);
   gp.setZero(p);
   material = MaterialGrad{};
+  pending = false;
 }
+
+void adjoint_finish(ForceModel& forces, Adjoint& a) { flush_pending(forces, a, a.gx); }
 
 void adjoint_symplectic_euler(ForceModel& forces, const StepTape& tape, double h, Adjoint& a) {
   // (x1, v1) = drift(x0, v'), v' = v0 + h M^-1 f(x0, v0)
   drift_adjoint(tape.drift, a.gx, a.gv, nullptr, a.material);
-  const Eigen::Matrix2Xd vbar = a.gv;  // of v'; v0 passes through the kick unchanged
-  kick_adjoint(forces, tape.start, vbar, h, a.gx, a.gv, a.gp);
+  // the kick: a.gv is v' 's adjoint, and v0 passes through the kick unchanged
+  Eigen::Matrix2Xd& w = a.scratch.w;
+  scaled_by_inv_mass(tape.start, a.gv, h, w);
+  forces.vjp(tape.start, w, a.gx, a.gv);
+  forces.param_vjp(tape.start, w, a.gp);
 }
 
 // Forward (integrator_verlet.cpp, correct_impacts in impact_correction.cpp):
@@ -69,25 +79,57 @@ void adjoint_symplectic_euler(ForceModel& forces, const StepTape& tape, double h
 //           = clamp(1 + e + kick / -vn_before, 1, 2),
 //   f1 = f(x1, vc); with the predictor vp = vc + h/2 M^-1 f1 and f2 = f(x1, vp), else f2 = f1;
 //   v1 = vc + h/2 M^-1 f2.
+// With a model that splits, the forces that depend on the positions only have the same
+// Jacobians and parameter derivatives at (x1, vp), (x1, vc) and the next step's (x1, v1):
+// their products of those kicks are one product, at x1, of the sum of the kicks' w (the next
+// step's part comes in as Adjoint::pending). The velocity-dependent forces' products stay
+// one per kick.
 void adjoint_velocity_verlet(ForceModel& forces, const StepTape& tape, double h, Adjoint& a) {
   const State& s0 = tape.start;
-  const State s1 = at(s0, tape.x1, tape.vc);
-  Eigen::Matrix2Xd gx1 = a.gx;
-  Eigen::Matrix2Xd vc_bar = a.gv;  // v1 = vc + ...
+  const Eigen::Index np = s0.x.cols();
+  const bool split = forces.splits();
+  const Part kick_part = split ? Part::kVelocityDependent : Part::kAll;
+  if (split && a.pending && a.pending_at.x != tape.x1) flush_pending(forces, a, a.gx);
+  Adjoint::Scratch& sc = a.scratch;
+  const State& s1 = at(s0, tape.x1, tape.vc, sc.s1);
+  Eigen::Matrix2Xd& gx1 = sc.gx1;
+  gx1 = a.gx;
+  Eigen::Matrix2Xd& vc_bar = sc.vc_bar;
+  vc_bar = a.gv;                       // v1 = vc + ...
+  Eigen::Matrix2Xd& w_pos = sc.w_pos;  // split: the position-only forces' w at x1, summed
+  if (split) w_pos.setZero(2, np);
+  Eigen::Matrix2Xd& w = sc.w;
+  // the adjoint of a kick v' = v + h/2 M^-1 f(s), given v' 's adjoint vbar
+  auto kick = [&](const State& s, const Eigen::Matrix2Xd& vbar, Eigen::Matrix2Xd& gv_out) {
+    scaled_by_inv_mass(s, vbar, 0.5 * h, w);
+    forces.vjp_part(kick_part, s, w, gx1, gv_out);
+    forces.param_vjp_part(kick_part, s, w, a.gp);
+    if (split) w_pos += w;
+  };
   if (tape.predicted) {
     // v1 = vc + h/2 M^-1 f(x1, vp), vp = vc + h/2 M^-1 f(x1, vc)
-    const State sp = at(s0, tape.x1, tape.vp);
-    Eigen::Matrix2Xd vp_bar = Eigen::Matrix2Xd::Zero(2, s0.x.cols());
-    kick_adjoint(forces, sp, a.gv, 0.5 * h, gx1, vp_bar, a.gp);
+    const State& sp = at(s0, tape.x1, tape.vp, sc.s2);
+    Eigen::Matrix2Xd& vp_bar = sc.vp_bar;
+    vp_bar.setZero(2, np);
+    kick(sp, a.gv, vp_bar);
     vc_bar += vp_bar;
-    kick_adjoint(forces, s1, vp_bar, 0.5 * h, gx1, vc_bar, a.gp);
+    kick(s1, vp_bar, vc_bar);
   } else {
-    kick_adjoint(forces, s1, a.gv, 0.5 * h, gx1, vc_bar, a.gp);
+    kick(s1, a.gv, vc_bar);
+  }
+  if (split) {
+    if (a.pending) {
+      w_pos += a.pending_w;
+      a.pending = false;
+    }
+    forces.vjp_part(Part::kPositionOnly, s1, w_pos, gx1, vc_bar);
+    forces.param_vjp_part(Part::kPositionOnly, s1, w_pos, a.gp);
   }
   // the impact correction: vd passes, the impacts' own values and a0 get adjoints
   const DriftTape& d = tape.drift;
   std::vector<ImpactSeed> seeds;
-  Eigen::Matrix2Xd a0_bar = Eigen::Matrix2Xd::Zero(2, s0.x.cols());
+  Eigen::Matrix2Xd& a0_bar = sc.a0_bar;
+  a0_bar.setZero(2, np);
   bool any = false;
   for (const Impact& m : d.impacts) any = any || m.emitted;
   if (any) {
@@ -123,15 +165,20 @@ void adjoint_velocity_verlet(ForceModel& forces, const StepTape& tape, double h,
     }
   }
   // the drift, with the correction's seeds on its impacts
-  Eigen::Matrix2Xd gv_in = vc_bar;
   a.gx = gx1;
-  drift_adjoint(d, a.gx, gv_in, any ? &seeds : nullptr, a.material);
+  drift_adjoint(d, a.gx, vc_bar, any ? &seeds : nullptr, a.material);
   // vh = v0 + h/2 M^-1 f0; a0 = M^-1 f0
-  a.gv = gv_in;
-  const Eigen::Matrix2Xd w =
-      scaled_by_inv_mass(s0, gv_in, 0.5 * h) + scaled_by_inv_mass(s0, a0_bar, 1.0);
-  forces.vjp(s0, w, a.gx, a.gv);
-  forces.param_vjp(s0, w, a.gp);
+  a.gv = vc_bar;
+  w.resize(2, np);
+  for (Eigen::Index i = 0; i < np; ++i)
+    w.col(i) = (0.5 * h * s0.inv_mass[i]) * vc_bar.col(i) + (1.0 * s0.inv_mass[i]) * a0_bar.col(i);
+  forces.vjp_part(kick_part, s0, w, a.gx, a.gv);
+  forces.param_vjp_part(kick_part, s0, w, a.gp);
+  if (split) {  // the position-only forces' part: with the earlier step's kicks at x0
+    a.pending_w = w;
+    a.pending_at = s0;
+    a.pending = true;
+  }
 }
 
 void adjoint_step(Scheme scheme, ForceModel& forces, const StepTape& tape, double h, Adjoint& a,

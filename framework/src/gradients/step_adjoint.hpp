@@ -36,6 +36,18 @@ struct Adjoint {
   Eigen::Matrix2Xd gx, gv;  ///< d L / d x, d L / d v of the state
   Eigen::VectorXd gp;       ///< d L / d theta of the force parameters (ForceModel::param_vjp)
   MaterialGrad material;    ///< d L / d (restitution, friction, kick) per obstacle
+  /// Velocity Verlet with a model that splits: the opening kick's product for the
+  /// position-only forces, w at the state entering the step, not yet added (the earlier
+  /// step's kicks at the same positions take it into theirs; adjoint_finish adds what is
+  /// left).
+  Eigen::Matrix2Xd pending_w;
+  State pending_at;
+  bool pending = false;
+  /// Storage of the adjoint steps, reused from step to step (no allocation per step).
+  struct Scratch {
+    State s1, s2;
+    Eigen::Matrix2Xd gx1, vc_bar, vp_bar, w, w_pos, a0_bar, unused;
+  } scratch;
 
   /// Zero adjoints for n particles and p parameter components.
   void reset(Eigen::Index n, Eigen::Index p);
@@ -65,6 +77,10 @@ void adjoint_velocity_verlet(ForceModel& forces, const StepTape& tape, double h,
 /// by central differences along the one direction (h^2 v', h dv) that they need.
 void adjoint_implicit_euler(ForceModel& forces, const StepTape& tape, double h, Adjoint& a,
                             AdjointStats& stats);
+
+/// Adds what the adjoint steps deferred (Adjoint::pending); call after the last (earliest)
+/// step, before reading the adjoints of the initial state and the parameters.
+void adjoint_finish(ForceModel& forces, Adjoint& a);
 
 /// The adjoint step of `scheme`.
 void adjoint_step(Scheme scheme, ForceModel& forces, const StepTape& tape, double h, Adjoint& a,

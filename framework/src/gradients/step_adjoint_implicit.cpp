@@ -112,10 +112,12 @@ void adjoint_implicit_euler(ForceModel& forces, const StepTape& tape, double h, 
   const Sparse A = system_matrix(s0, K, D, h);
   const Eigen::VectorXd mu_flat = transposed_solve(A, flat(lam), stats);
   const Eigen::Matrix2Xd mu = Eigen::Map<const Eigen::Matrix2Xd>(mu_flat.data(), 2, np);
-  // first order: b = h f + h^2 K v0
-  Eigen::Matrix2Xd kx = Eigen::Matrix2Xd::Zero(2, np), dx = Eigen::Matrix2Xd::Zero(2, np);
-  forces.vjp(s0, h * mu, kx, dx);  // kx = h K^T mu, dx = h D^T mu
-  forces.param_vjp(s0, h * mu, a.gp);
+  // first order: b = h f + h^2 K v0; kx = h K^T mu, dx = h D^T mu from the K and D at hand
+  const Eigen::Matrix2Xd hmu = h * mu;
+  Eigen::Matrix2Xd kx(2, np), dx(2, np);
+  Eigen::Map<Eigen::VectorXd>(kx.data(), kx.size()) = K.transpose() * flat(hmu);
+  Eigen::Map<Eigen::VectorXd>(dx.data(), dx.size()) = D.transpose() * flat(hmu);
+  forces.param_vjp(s0, hmu, a.gp);
   a.gx += kx;
   a.gv += dx + h * kx;
   // second order, along (a, c) = (h^2 v', h dv)
