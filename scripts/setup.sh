@@ -49,8 +49,10 @@ if ((${#missing[@]})); then
   echo "setup: installing missing Debian packages: ${missing[*]}"
   sudo=""
   [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  t0=$SECONDS
   $sudo apt-get update -qq
   DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+  echo "setup: ${#missing[@]} packages (and their dependencies) installed in $((SECONDS - t0)) s"
 fi
 
 # A compiler cache, when ccache is installed (`setup.sh test` installs it; CI runs that):
@@ -68,12 +70,14 @@ if [ "$mode" = run ]; then
   installed libhdf5-dev && with+=(-DPINSIM_WITH_HDF5=ON) || with+=(-DPINSIM_WITH_HDF5=OFF)
   # A first configure leaves out the tests and benches (Catch2 is not installed yet); a build
   # folder configured by `setup.sh test` keeps them.
+  t0=$SECONDS
   if [ -f build/release/CMakeCache.txt ]; then
     cmake --preset release "${with[@]}" >/dev/null
   else
     cmake --preset release "${with[@]}" -DPINSIM_BUILD_TESTS=OFF -DPINSIM_BUILD_BENCH=OFF >/dev/null
   fi
   cmake --build --preset release -j "$jobs" --target pinsim_run
+  echo "setup: configured and built the program and its plugins in $((SECONDS - t0)) s"
   exit 0
 fi
 

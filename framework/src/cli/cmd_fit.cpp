@@ -150,7 +150,8 @@ void add_fit_command(CLI::App& app) {
                 "final:I:x|y|vx|vy, misfit:RUN_DIR)");
   c->add_option("--wrt", a->wrt,
                 "Values to fit, as --set paths (particles[I].x, particles[I].v, "
-                "forces[K].params.NAME, obstacles[K].material.restitution|friction|kick); bounds "
+                "bodies[K].center|origin|root, bodies[K].velocity, forces[K].params.NAME, "
+                "obstacles[K].material.restitution|friction|kick); bounds "
                 "from the plugins' parameter tables and the materials' ranges")
       ->required()
       ->take_all();

@@ -85,7 +85,8 @@ void add_grad_command(CLI::App& app) {
       ->required();
   c->add_option("--wrt", a->wrt,
                 "Values to differentiate in, as --set paths: particles[I].x, particles[I].v, "
-                "forces[K].params.NAME, obstacles[K].material.restitution|friction|kick (sdf)")
+                "bodies[K].center|origin|root, bodies[K].velocity, forces[K].params.NAME, "
+                "obstacles[K].material.restitution|friction|kick (sdf)")
       ->required()
       ->take_all();
   c->add_option("--out,-o", a->out, "Folder for gradient.json");

@@ -38,6 +38,7 @@ bool parse_index(const std::string& s, std::size_t& out) {
 
 constexpr const char* kDifferentiable =
     "differentiable: particles[I].x, particles[I].v (explicit particles' initial state), "
+    "bodies[K].center (.origin, .root: the body's position), bodies[K].velocity, "
     "forces[K].params.NAME (a real or 2-vector parameter) and, with a backend that records its "
     "collisions (sdf), obstacles[K].material.restitution, .friction, .kick";
 
@@ -99,8 +100,43 @@ WrtValue particle_value(const Scene& scene, const std::string& path,
   w.path = path;
   w.kind = k[2] == "x" ? WrtValue::Kind::kPosition : WrtValue::Kind::kVelocity;
   w.index = i;
+  w.particles = {static_cast<uint32_t>(i)};
   const Eigen::Vector2d q = k[2] == "x" ? scene.particles.x[i] : scene.particles.v[i];
   w.value = {q.x(), q.y()};
+  return w;
+}
+
+/// A body's position (the key its type is built from: a ring blob's center, a grid blob's
+/// origin, a strand's root), which moves all its particles, or its velocity, which every
+/// particle that is not pinned starts with.
+WrtValue body_value(const Scene& scene, const std::string& path,
+                    const std::vector<std::string>& k) {
+  std::size_t b = 0;
+  if (k.size() < 2 || !parse_index(k[1], b))
+    bad_path(path, "expected bodies[K].center (.origin, .root) or bodies[K].velocity");
+  if (b >= scene.bodies.size())
+    bad_path(path,
+             "the scene has " + std::to_string(scene.bodies.size()) + " bodies, no index " + k[1]);
+  const Body& body = scene.bodies[b];
+  const std::string place = body.type == "ring_blob"   ? "center"
+                            : body.type == "grid_blob" ? "origin"
+                            : body.type == "strand"    ? "root"
+                                                       : "";
+  if (k.size() != 3 || (k[2] != "velocity" && (place.empty() || k[2] != place)))
+    bad_path(path, "not differentiable: a " + body.type + "'s " +
+                       (place.empty() ? std::string() : place + " or ") + "velocity is (" +
+                       kDifferentiable + ")");
+  const nlohmann::json& spec = scene.doc["bodies"][b];
+  WrtValue w;
+  w.path = path;
+  w.index = b;
+  w.param = k[2];
+  const bool velocity = k[2] == "velocity";
+  w.kind = velocity ? WrtValue::Kind::kBodyVelocity : WrtValue::Kind::kBodyPosition;
+  w.value = {0.0, 0.0};
+  if (spec.contains(k[2])) w.value = spec[k[2]].get<std::vector<double>>();
+  for (uint32_t i = body.first; i < body.first + body.count; ++i)
+    if (!velocity || scene.particles.inv_mass[i] > 0.0) w.particles.push_back(i);
   return w;
 }
 
@@ -208,7 +244,9 @@ class SimulationForces : public ForceModel {
     for (std::size_t w = 0; w < wrt.size(); ++w) {
       const WrtValue& v = wrt[w];
       for (std::size_t c = 0; c < v.value.size(); ++c) {
-        if (v.kind == WrtValue::Kind::kVelocity || v.kind == WrtValue::Kind::kMaterial) continue;
+        if (v.kind == WrtValue::Kind::kVelocity || v.kind == WrtValue::Kind::kBodyVelocity ||
+            v.kind == WrtValue::Kind::kMaterial)
+          continue;
         const double theta = v.value[c];
         const double eps = rel_eps * std::max(std::abs(theta), 1.0);
         const double up = std::min(theta + eps, v.upper), down = std::max(theta - eps, v.lower);
@@ -363,16 +401,24 @@ class SimulationForces : public ForceModel {
     entries_.push_back(std::move(e));
   }
 
-  /// Initial position component c of particle v.index: forces whose rest values come from
-  /// the initial configuration are created again from it moved by +-eps; a force whose value
-  /// at the initial state does not change (gravity) does not depend on it and is left out.
+  /// Initial position component c of v's particles (one particle, or a body's, moved
+  /// together): forces whose rest values come from the initial configuration are created
+  /// again from it moved by +-eps; a force whose value at the initial state does not change
+  /// (gravity, or a body's springs when the whole body moves) does not depend on it and is
+  /// left out.
   void add_rest_source(const Scene& scene, PluginLoader& loader, const WrtValue& v, int c,
                        double up, double down) {
     const State initial = scene.initial_state();
+    const double theta = v.value[static_cast<std::size_t>(c)];
     for (std::size_t k = 0; k < scene.forces.size(); ++k) {
       State sp = initial, sm = initial;
-      sp.x(c, static_cast<Eigen::Index>(v.index)) = up;
-      sm.x(c, static_cast<Eigen::Index>(v.index)) = down;
+      for (const uint32_t i : v.particles) {
+        const auto col = static_cast<Eigen::Index>(i);
+        // a particle the value names directly is set; a body's are moved by the same step
+        sp.x(c, col) = v.kind == WrtValue::Kind::kPosition ? up : initial.x(c, col) + (up - theta);
+        sm.x(c, col) =
+            v.kind == WrtValue::Kind::kPosition ? down : initial.x(c, col) + (down - theta);
+      }
       Entry e;
       e.slot = slots_;
       e.force = k;
@@ -535,6 +581,10 @@ const char* kind_name(WrtValue::Kind k) {
       return "force parameter";
     case WrtValue::Kind::kMaterial:
       return "obstacle material";
+    case WrtValue::Kind::kBodyPosition:
+      return "body position";
+    case WrtValue::Kind::kBodyVelocity:
+      return "body velocity";
   }
   return "";
 }
@@ -571,6 +621,8 @@ std::vector<WrtValue> resolve_wrt(const Scene& scene, const Simulation& sim,
       out.push_back(force_value(scene, sim, p, k));
     } else if (k[0] == "obstacles") {
       out.push_back(material_value(scene, sim, p, k));
+    } else if (k[0] == "bodies") {
+      out.push_back(body_value(scene, p, k));
     } else if (scene.doc.contains(k[0])) {
       bad_path(p, "not differentiable (" + std::string(kDifferentiable) + ")");
     } else {
@@ -724,6 +776,14 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
         case WrtValue::Kind::kVelocity:
           g.gradient[c] = a.gv(c, i);
           break;
+        case WrtValue::Kind::kBodyPosition:
+          // d L / d p = sum over the body's particles of d L / d x_i(0), plus rest values
+          g.gradient[c] = gp;
+          for (const uint32_t j : values[w].particles) g.gradient[c] += a.gx(c, j);
+          break;
+        case WrtValue::Kind::kBodyVelocity:
+          for (const uint32_t j : values[w].particles) g.gradient[c] += a.gv(c, j);
+          break;
         case WrtValue::Kind::kForceParameter:
           g.gradient[c] = gp;
           r.any_parameter = true;
@@ -754,7 +814,8 @@ nlohmann::json GradientReport::to_json() const {
     nlohmann::json e = {{"value", v}, {"gradient", g}, {"kind", kind_name(p.wrt.kind)}};
     if (p.wrt.kind == WrtValue::Kind::kForceParameter) {
       e["parameter derivative"] = "finite differences";
-    } else if (p.wrt.kind == WrtValue::Kind::kPosition) {
+    } else if (p.wrt.kind == WrtValue::Kind::kPosition ||
+               p.wrt.kind == WrtValue::Kind::kBodyPosition) {
       e["rest values"] = "finite differences";
     }
     paths_json[p.wrt.path] = e;

@@ -26,11 +26,16 @@ struct WrtValue {
     kPosition,        ///< particles[I].x: the initial position of an explicit particle
     kVelocity,        ///< particles[I].v: its initial velocity
     kForceParameter,  ///< forces[K].params.NAME: a real or 2-vector parameter of a force
-    kMaterial         ///< obstacles[K].material.NAME: restitution, friction or kick of an obstacle
+    kMaterial,        ///< obstacles[K].material.NAME: restitution, friction or kick of an obstacle
+    kBodyPosition,    ///< bodies[K].center (.origin, .root): where a body is built
+    kBodyVelocity     ///< bodies[K].velocity: the initial velocity of its free particles
   };
   std::string path;  ///< as given, e.g. "forces[1].params.ks"
   Kind kind = Kind::kVelocity;
-  std::size_t index = 0;                       ///< the particle, the force or the obstacle
+  std::size_t index = 0;  ///< the particle, the force, the obstacle or the body
+  /// The particles a position or velocity value moves, all by the same amount: the one
+  /// particle, or a body's particles (for its velocity, those not pinned).
+  std::vector<uint32_t> particles;
   std::string param;                           ///< the parameter's or material's name
   std::vector<double> value;                   ///< its components
   double lower = -HUGE_VAL, upper = HUGE_VAL;  ///< its bounds (the plugin's parameter table)

@@ -87,6 +87,39 @@ TEST_CASE("scene gradient: initial positions through the rest lengths they set",
     check_against_runs(file, {}, "final:1:y", {"particles[1].x", "particles[0].v"}, integrator);
 }
 
+// A body's position and velocity. The blob's forces are uniform gravity and springs between
+// its own particles, which depend only on differences of positions and of velocities, so
+// the run is translation- and Galilean-invariant: moving the body by d moves every particle's
+// path by d, and adding u to every velocity adds u t (with x_N = x_0 + h sum v_n, exactly
+// N h u = T u in every integrator). Hence d x_I(T) / d center = (1, 0) and
+// d x_I(T) / d velocity = (T, 0) exactly, whatever the springs do.
+TEST_CASE("scene gradient: a blob's position and velocity, closed forms", "[gradients][scene]") {
+  const std::string file = scene_file("grad_blob_body", kBlob);
+  for (const char* integrator : {"symplectic_euler", "velocity_verlet", "implicit_euler"}) {
+    INFO(integrator);
+    const GradientReport r =
+        gradient(file, {}, "final:5:x", {"bodies[0].center", "bodies[0].velocity"}, integrator);
+    REQUIRE(r.paths.size() == 2);
+    CHECK(r.paths[0].wrt.value == std::vector<double>{0.0, 1.0});
+    CHECK(r.paths[1].wrt.value == std::vector<double>{0.4, 0.3});
+    CHECK(r.paths[0].gradient[0] == Approx(1.0).epsilon(1e-9));
+    CHECK(std::abs(r.paths[0].gradient[1]) <= 1e-9);
+    CHECK(r.paths[1].gradient[0] == Approx(0.3).epsilon(1e-9));  // T = 0.3 s
+    CHECK(std::abs(r.paths[1].gradient[1]) <= 1e-9);
+  }
+}
+
+// A strand pinned at its root: the root moves the whole strand with its pin, but the pinned
+// particle keeps v = 0 whatever the body's velocity, so nothing is invariant here: against
+// central differences of whole runs.
+TEST_CASE("scene gradient: a pinned strand's root and velocity against whole runs",
+          "[gradients][scene]") {
+  const std::string file = PINSIM_SOURCE_DIR "/configs/hair_strand.json";
+  for (const char* integrator : {"symplectic_euler", "velocity_verlet"})
+    check_against_runs(file, {"time.duration=0.04", "bodies[0].velocity=[0.2,-0.1]"}, "final:11:y",
+                       {"bodies[0].root", "bodies[0].velocity"}, integrator);
+}
+
 // Symplectic Euler under uniform gravity: v_n = v0 + n h g, x_N = x0 + h sum_{n=1..N} v_n
 //   = x0 + v0 T + g h^2 N (N + 1) / 2, so d x(T) / d v0 = T and d y(T) / d g_y = T (T + h) / 2
 // exactly, for any step (T = N h).
@@ -172,6 +205,21 @@ TEST_CASE("scene gradient: bad paths name themselves", "[gradients][scene]") {
   CHECK_THAT(message("forces[0].params.mode"), Catch::Contains("not differentiable"));
   CHECK_THAT(message("particles[0].radius"), Catch::Contains("not differentiable"));
   CHECK_THAT(message("nothing.here"), Catch::Contains("the scene has no 'nothing'"));
+  CHECK_THAT(message("bodies[0].center"), Catch::Contains("has 0 bodies"));
+  const std::string blob = scene_file("grad_blob_paths", kBlob);
+  auto blob_message = [&](const std::string& path) {
+    try {
+      (void)gradient(blob, {}, "final:0:x", {path}, "");
+    } catch (const InputError& e) {
+      return std::string(e.what());
+    }
+    return std::string("no error");
+  };
+  CHECK_THAT(blob_message("bodies[0].root"),
+             Catch::Contains("a ring_blob's center or velocity is"));
+  CHECK_THAT(blob_message("bodies[0].ring_radius"), Catch::Contains("not differentiable"));
+  CHECK_THAT(blob_message("bodies[1].center"), Catch::Contains("has 1 bodies, no index 1"));
+  CHECK_THAT(blob_message("bodies[x].center"), Catch::Contains("expected bodies[K].center"));
 }
 
 TEST_CASE("scene gradient: integrators and backends without an adjoint are refused",
