@@ -188,38 +188,36 @@ TEST_CASE("scene gradient: checkpoint segments do not change the gradient", "[gr
   CHECK(a.state_hash == b.state_hash);
 }
 
+namespace {
+
+// The message of a --wrt path that scene_gradient refuses ("no error" if it takes it).
+std::string wrt_error(const std::string& file, const std::string& path) {
+  try {
+    (void)gradient(file, {}, "final:0:x", {path}, "");
+  } catch (const InputError& e) {
+    return std::string(e.what());
+  }
+  return std::string("no error");
+}
+
+}  // namespace
+
 TEST_CASE("scene gradient: bad paths name themselves", "[gradients][scene]") {
   const std::string file = PINSIM_SOURCE_DIR "/configs/projectile.json";
-  auto message = [&](const std::string& path) {
-    try {
-      (void)gradient(file, {}, "final:0:x", {path}, "");
-    } catch (const InputError& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
-  };
-  CHECK_THAT(message("particles[3].v"),
+  CHECK_THAT(wrt_error(file, "particles[3].v"),
              Catch::Contains("--wrt particles[3].v") && Catch::Contains("has 1 entries"));
-  CHECK_THAT(message("time.dt"), Catch::Contains("--wrt time.dt: not differentiable"));
-  CHECK_THAT(message("forces[0].params.q"), Catch::Contains("no parameter 'q'"));
-  CHECK_THAT(message("forces[0].params.mode"), Catch::Contains("not differentiable"));
-  CHECK_THAT(message("particles[0].radius"), Catch::Contains("not differentiable"));
-  CHECK_THAT(message("nothing.here"), Catch::Contains("the scene has no 'nothing'"));
-  CHECK_THAT(message("bodies[0].center"), Catch::Contains("has 0 bodies"));
+  CHECK_THAT(wrt_error(file, "time.dt"), Catch::Contains("--wrt time.dt: not differentiable"));
+  CHECK_THAT(wrt_error(file, "forces[0].params.q"), Catch::Contains("no parameter 'q'"));
+  CHECK_THAT(wrt_error(file, "forces[0].params.mode"), Catch::Contains("not differentiable"));
+  CHECK_THAT(wrt_error(file, "particles[0].radius"), Catch::Contains("not differentiable"));
+  CHECK_THAT(wrt_error(file, "nothing.here"), Catch::Contains("the scene has no 'nothing'"));
+  CHECK_THAT(wrt_error(file, "bodies[0].center"), Catch::Contains("has 0 bodies"));
   const std::string blob = scene_file("grad_blob_paths", kBlob);
-  auto blob_message = [&](const std::string& path) {
-    try {
-      (void)gradient(blob, {}, "final:0:x", {path}, "");
-    } catch (const InputError& e) {
-      return std::string(e.what());
-    }
-    return std::string("no error");
-  };
-  CHECK_THAT(blob_message("bodies[0].root"),
+  CHECK_THAT(wrt_error(blob, "bodies[0].root"),
              Catch::Contains("a ring_blob's center or velocity is"));
-  CHECK_THAT(blob_message("bodies[0].ring_radius"), Catch::Contains("not differentiable"));
-  CHECK_THAT(blob_message("bodies[1].center"), Catch::Contains("has 1 bodies, no index 1"));
-  CHECK_THAT(blob_message("bodies[x].center"), Catch::Contains("expected bodies[K].center"));
+  CHECK_THAT(wrt_error(blob, "bodies[0].ring_radius"), Catch::Contains("not differentiable"));
+  CHECK_THAT(wrt_error(blob, "bodies[1].center"), Catch::Contains("has 1 bodies, no index 1"));
+  CHECK_THAT(wrt_error(blob, "bodies[x].center"), Catch::Contains("expected bodies[K].center"));
 }
 
 TEST_CASE("scene gradient: integrators and backends without an adjoint are refused",
