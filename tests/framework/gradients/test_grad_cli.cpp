@@ -7,6 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "test_support.hpp"
+#include "whole_runs.hpp"
 
 using namespace pinsim;
 
@@ -17,23 +18,6 @@ nlohmann::json read_json(const std::filesystem::path& p) {
 }
 
 const std::string kProjectile = PINSIM_SOURCE_DIR "/configs/projectile.json";
-
-// A ring blob whose springs start away from their rest lengths, so that it oscillates as it
-// flies: its edges' ks and kd leave their mark on every frame.
-const char* const kFlyingBlob = R"({
-  "time": {"dt": 0.001, "duration": 0.5},
-  "backend": {"name": "none"},
-  "bodies": [{"type": "ring_blob", "name": "blob", "center": [0.0, 1.0], "ring_radius": 0.3,
-              "count": 8, "total_mass": 0.8, "radius": 0.02, "velocity": [0.4, 0.3]}],
-  "forces": [
-    {"type": "gravity", "params": {"g": [0.0, -9.81]}},
-    {"type": "damped_spring", "params": {"ks": 300.0, "kd": 0.4, "rest_length": 0.25},
-     "elements": {"body": "blob", "set": "edges"}},
-    {"type": "damped_spring", "params": {"ks": 100.0, "kd": 0.2, "rest_length": 0.55},
-     "elements": {"body": "blob", "set": "cross"}}
-  ],
-  "output": {"every": 10}
-})";
 
 }  // namespace
 
@@ -124,7 +108,7 @@ TEST_CASE("grad cli: bad input is exit 2 naming it", "[gradients][cli]") {
 TEST_CASE("fit cli: a blob's ks and kd recovered from its own recorded run",
           "[gradients][cli][fit]") {
   const auto dir = test::temp_dir("fit_blob");
-  test::write_file(dir / "blob.json", kFlyingBlob);
+  test::write_file(dir / "blob.json", grad::testing::kFlyingBlob);
   const std::string scene = (dir / "blob.json").string();
   REQUIRE(test::pinsim_cli("run " + scene + " -q --out " + (dir / "rec").string()).code == 0);
   const auto fit = test::pinsim_cli(
@@ -151,7 +135,7 @@ TEST_CASE("fit cli: a blob's ks and kd recovered from its own recorded run",
 TEST_CASE("fit cli: a blob's launch point and velocity recovered from its recorded run",
           "[gradients][cli][fit]") {
   const auto dir = test::temp_dir("fit_blob_launch");
-  test::write_file(dir / "blob.json", kFlyingBlob);
+  test::write_file(dir / "blob.json", grad::testing::kFlyingBlob);
   const std::string scene = (dir / "blob.json").string();
   REQUIRE(test::pinsim_cli("run " + scene + " -q --out " + (dir / "rec").string()).code == 0);
   const auto fit = test::pinsim_cli(

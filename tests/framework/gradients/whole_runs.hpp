@@ -16,6 +16,24 @@
 
 namespace pinsim::grad::testing {
 
+/// A ring blob of damped springs under gravity, no obstacles (backend none), whose springs
+/// start away from their rest lengths, so that it oscillates as it flies: its edges' ks and
+/// kd leave their mark on every frame.
+inline constexpr const char* kFlyingBlob = R"({
+  "time": {"dt": 0.001, "duration": 0.5},
+  "backend": {"name": "none"},
+  "bodies": [{"type": "ring_blob", "name": "blob", "center": [0.0, 1.0], "ring_radius": 0.3,
+              "count": 8, "total_mass": 0.8, "radius": 0.02, "velocity": [0.4, 0.3]}],
+  "forces": [
+    {"type": "gravity", "params": {"g": [0.0, -9.81]}},
+    {"type": "damped_spring", "params": {"ks": 300.0, "kd": 0.4, "rest_length": 0.25},
+     "elements": {"body": "blob", "set": "edges"}},
+    {"type": "damped_spring", "params": {"ks": 100.0, "kd": 0.2, "rest_length": 0.55},
+     "elements": {"body": "blob", "set": "cross"}}
+  ],
+  "output": {"every": 10}
+})";
+
 inline std::string text(double v) {
   char buf[32];
   const auto r = std::to_chars(buf, buf + sizeof buf, v);
