@@ -765,24 +765,26 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
     g.wrt = values[w];
     const auto n = static_cast<Eigen::Index>(values[w].value.size());
     g.gradient.setZero(n);
-    const auto i = static_cast<Eigen::Index>(values[w].index);
     for (Eigen::Index c = 0; c < n; ++c) {
       const Eigen::Index slot = model.slot_of(w, static_cast<int>(c));
       const double gp = slot >= 0 && slot < a.gp.size() ? a.gp[slot] : 0.0;
+      // component c of the state adjoint summed over the particles the value moves (one
+      // particle, or a body's)
+      auto over_particles = [&](const Eigen::Matrix2Xd& adj) {
+        const std::vector<uint32_t>& ps = values[w].particles;
+        double sum = ps.empty() ? 0.0 : adj(c, ps[0]);
+        for (std::size_t j = 1; j < ps.size(); ++j) sum += adj(c, ps[j]);
+        return sum;
+      };
       switch (values[w].kind) {
         case WrtValue::Kind::kPosition:
-          g.gradient[c] = a.gx(c, i) + gp;
+        case WrtValue::Kind::kBodyPosition:
+          // d L / d p = sum of d L / d x_i(0), plus the rest values' part
+          g.gradient[c] = over_particles(a.gx) + gp;
           break;
         case WrtValue::Kind::kVelocity:
-          g.gradient[c] = a.gv(c, i);
-          break;
-        case WrtValue::Kind::kBodyPosition:
-          // d L / d p = sum over the body's particles of d L / d x_i(0), plus rest values
-          g.gradient[c] = gp;
-          for (const uint32_t j : values[w].particles) g.gradient[c] += a.gx(c, j);
-          break;
         case WrtValue::Kind::kBodyVelocity:
-          for (const uint32_t j : values[w].particles) g.gradient[c] += a.gv(c, j);
+          g.gradient[c] = over_particles(a.gv);
           break;
         case WrtValue::Kind::kForceParameter:
           g.gradient[c] = gp;
