@@ -42,7 +42,7 @@ extern "C" {
 /** Major version: changes with every incompatible change (see the top of this file). */
 #define PINSIM_ABI_MAJOR 4u
 /** Minor version: counts the compatible additions within the major. */
-#define PINSIM_ABI_MINOR 3u
+#define PINSIM_ABI_MINOR 4u
 /** The value of pinsim_plugin.abi_version: the major version. */
 #define PINSIM_ABI_VERSION PINSIM_ABI_MAJOR
 
@@ -73,6 +73,9 @@ enum {
   /** force (4.2): constraint_set() and constraints() are provided: the force is a sum of soft
    *  constraints (pinsim_constraint_set) */
   PINSIM_CAP_CONSTRAINTS = 1u << 6,
+  /** force (4.4): add_dforce_dparam() is provided: the force's derivatives in its parameters
+   *  flagged PINSIM_PARAM_DIFFERENTIABLE (at least one) */
+  PINSIM_CAP_DPARAM = 1u << 7,
   PINSIM_CAP_DISTANCE = 1u << 8,         /**< backend: distance() is provided */
   PINSIM_CAP_PARTICLE_CONTACT = 1u << 9, /**< backend: can resolve particle-particle contacts */
   PINSIM_CAP_INPUTS = 1u << 10,          /**< backend: input() is provided */
@@ -81,7 +84,10 @@ enum {
    *  drift without contacts is x += dt v for particles with inv_mass > 0 (pinned ones stay),
    *  and the backend reports no contact it did not make. `pinsim grad` refuses a backend
    *  without it; a host that does not know the bit ignores it. */
-  PINSIM_CAP_DIFFERENTIABLE = 1u << 12
+  PINSIM_CAP_DIFFERENTIABLE = 1u << 12,
+  /** force (4.4): add_jacobian_products() is provided (with PINSIM_CAP_DFDX, and
+   *  PINSIM_CAP_DFDV if the force may depend on velocity) */
+  PINSIM_CAP_JACOBIAN_PRODUCTS = 1u << 13
 };
 
 /** Declared parameter types. */
@@ -97,7 +103,10 @@ typedef enum pinsim_param_type {
 enum {
   PINSIM_PARAM_REQUIRED = 1u << 0,      /**< the scene must give a value */
   PINSIM_PARAM_MIN_EXCLUSIVE = 1u << 1, /**< value must be > min rather than >= min */
-  PINSIM_PARAM_MAX_EXCLUSIVE = 1u << 2  /**< value must be < max rather than <= max */
+  PINSIM_PARAM_MAX_EXCLUSIVE = 1u << 2, /**< value must be < max rather than <= max */
+  /** 4.4, forces with PINSIM_CAP_DPARAM: add_dforce_dparam() gives the force's derivative in
+   *  this parameter (REAL or VEC2 only) */
+  PINSIM_PARAM_DIFFERENTIABLE = 1u << 3
 };
 
 /** One declared parameter. Unbounded ranges use +-HUGE_VAL. */
@@ -424,6 +433,24 @@ typedef struct pinsim_plugin {
    *  while recording, but the state it reaches is the same to the bit. NULL for a backend
    *  with nothing to record (no contacts) or that cannot differentiate its step. */
   int (*record_drift)(void* self, const pinsim_drift_sink* sink, pinsim_error* err);
+  /** 4.4, forces: df += d f / d theta at s (2n doubles), theta being component `component`
+   *  (0 for a REAL; 0 or 1 for a VEC2) of parameter number `param` (an index into params),
+   *  which is flagged PINSIM_PARAM_DIFFERENTIABLE. The derivative at the instance's own
+   *  parameter values, with everything it took from the initial state at create() (rest
+   *  lengths, angles, areas) held fixed: the limit of (f_plus - f_minus) / (2 eps) for two
+   *  instances created with theta moved by +-eps. The host calls it only for flagged
+   *  parameters (`pinsim grad`, whose output then says "plugin" for them, and check-plugin,
+   *  which compares it with central differences of add_force over the parameter). Only reads
+   *  the instance. NULL unless PINSIM_CAP_DPARAM. */
+  int (*add_dforce_dparam)(void* self, const pinsim_state_view* s, uint32_t param,
+                           uint32_t component, double* df, pinsim_error* err);
+  /** 4.4, forces: the Jacobians' transposed products with w (2n doubles) at s:
+   *  gx += (df/dx)^T w, and gv += (df/dv)^T w unless gv is NULL; the same numbers, to rounding,
+   *  as add_jacobians' entries multiplied out, without handing them over (what the host's
+   *  adjoint of a run takes each step, docs/gradients.md). Only reads the instance. NULL
+   *  unless PINSIM_CAP_JACOBIAN_PRODUCTS. */
+  int (*add_jacobian_products)(void* self, const pinsim_state_view* s, const double* w, double* gx,
+                               double* gv, pinsim_error* err);
 } pinsim_plugin;
 
 /** Length of the smallest table of this major: a 4.0 table, every entry up to `backend`. */

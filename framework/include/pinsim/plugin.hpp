@@ -8,6 +8,15 @@
 //   double energy(const pinsim::StateView& s) const;                          // -> CAP_ENERGY
 //   void add_dfdx(const pinsim::StateView& s, pinsim::Triplets& J) const;     // -> CAP_DFDX
 //   void add_dfdv(const pinsim::StateView& s, pinsim::Triplets& J) const;     // -> CAP_DFDV
+//   void add_dforce_dparam(const pinsim::StateView& s, std::string_view param, int component,
+//                          pinsim::ForceOut& df) const;                 // -> CAP_DPARAM
+//     (df += d f / d param, for each parameter declared .differentiable(); `component` 0, or
+//     0/1 for a vec2; `pinsim grad` uses it, check-plugin compares it with differences)
+//   void add_jacobian_products(const pinsim::StateView& s, const pinsim::Field& w,
+//                              pinsim::ForceOut& gx, pinsim::ForceOut* gv) const;
+//                                                             // -> CAP_JACOBIAN_PRODUCTS
+//     (gx += (df/dx)^T w, and gv += (df/dv)^T w when gv is not null: what `pinsim grad`
+//     takes each step, cheaper than the Jacobians' entries; needs add_dfdx)
 //   pinsim::ConstraintSet constraint_set() const;                   // both -> CAP_CONSTRAINTS
 //   void constraints(const double* x, const uint64_t* which, std::size_t count, double* c,
 //                    double* dc) const;
@@ -46,6 +55,7 @@
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 #include <vector>
 
@@ -101,6 +111,9 @@ struct MutableState {
 
 /// Force accumulator: add to column i the force on particle i.
 using ForceOut = Eigen::Map<Eigen::Matrix2Xd>;
+/// A read-only 2xN field over the particles (one column per particle), e.g. the w of
+/// add_jacobian_products.
+using Field = Eigen::Map<const Eigen::Matrix2Xd>;
 
 /// Sparse Jacobian accumulator; rows and columns are dofs (2*particle + component).
 /// add_block() collects blocks and hands them to the host kBatch at a time through the
@@ -302,6 +315,11 @@ struct ParamDecl {
   }
   ParamDecl& required() {
     flags |= PINSIM_PARAM_REQUIRED;
+    return *this;
+  }
+  /// The force's add_dforce_dparam() gives its derivative in this (real or vec2) parameter.
+  ParamDecl& differentiable() {
+    flags |= PINSIM_PARAM_DIFFERENTIABLE;
     return *this;
   }
   ParamDecl& units(std::string u) {

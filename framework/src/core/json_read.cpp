@@ -173,12 +173,20 @@ class StrictSax : public nlohmann::json_sax<nlohmann::json> {
     std::string p;
     for (std::size_t k = 0; k < frames_.size(); ++k) {
       const Frame& f = frames_[k];
+      // appended piece by piece: GCC 12 warns (-Wrestrict, a false positive) about
+      // "[" + std::to_string(...) inlined here
       if (f.object) {
-        if (!f.key.empty()) p += (p.empty() ? "" : ".") + f.key;
+        if (f.key.empty()) continue;
+        if (!p.empty()) p += '.';
+        p += f.key;
       } else if (next && k + 1 == frames_.size()) {
-        p += "[" + std::to_string(f.index) + "]";
+        p += '[';
+        p += std::to_string(f.index);
+        p += ']';
       } else if (f.index > 0) {
-        p += "[" + std::to_string(f.index - 1) + "]";
+        p += '[';
+        p += std::to_string(f.index - 1);
+        p += ']';
       }
     }
     return p;

@@ -149,6 +149,29 @@ void ForceInstance::constraints(const double* x, const uint64_t* which, uint64_t
     throw PluginError(context_ + ": plugin '" + plugin_->name() + "' constraints failed: " + buf);
 }
 
+int64_t ForceInstance::dparam_index(const std::string& name) const {
+  const pinsim_plugin& t = *plugin_->table;
+  if (t.add_dforce_dparam == nullptr || !has_cap(PINSIM_CAP_DPARAM)) return -1;
+  for (uint32_t i = 0; i < t.n_params; ++i)
+    if (t.params[i].name != nullptr && name == t.params[i].name)
+      return (t.params[i].flags & PINSIM_PARAM_DIFFERENTIABLE) ? static_cast<int64_t>(i) : -1;
+  return -1;
+}
+
+void ForceInstance::add_dforce_dparam(const pinsim_state_view& s, uint32_t param,
+                                      uint32_t component, double* df) const {
+  pinsim_error err = make_err(err_);
+  if (plugin_->table->add_dforce_dparam(self_, &s, param, component, df, &err) != 0)
+    fail("add_dforce_dparam");
+}
+
+void ForceInstance::add_jacobian_products(const pinsim_state_view& s, const double* w, double* gx,
+                                          double* gv) const {
+  pinsim_error err = make_err(err_);
+  if (plugin_->table->add_jacobian_products(self_, &s, w, gx, gv, &err) != 0)
+    fail("add_jacobian_products");
+}
+
 BackendInstance::BackendInstance(std::shared_ptr<const LoadedPlugin> plugin, const State& initial,
                                  InstanceArgs args)
     : plugin_(std::move(plugin)), context_(args.context) {

@@ -61,6 +61,23 @@ class ForceInstance {
   /// run on several threads at once (an error buffer per call). Throws PluginError.
   void constraints(const double* x, const uint64_t* which, uint64_t count, double* c,
                    double* dc) const;
+  /// The plugin gives the force's derivative in its parameter `name` (ABI 4.4,
+  /// PINSIM_CAP_DPARAM with the parameter flagged PINSIM_PARAM_DIFFERENTIABLE); its index
+  /// in the plugin's parameter table, or -1.
+  int64_t dparam_index(const std::string& name) const;
+  /// The plugin gives (df/dx)^T w and (df/dv)^T w itself (ABI 4.4,
+  /// PINSIM_CAP_JACOBIAN_PRODUCTS).
+  bool provides_jacobian_products() const {
+    return plugin_->table->add_jacobian_products != nullptr &&
+           has_cap(PINSIM_CAP_JACOBIAN_PRODUCTS) && provides_dfdx();
+  }
+  /// gx += (df/dx)^T w, gv += (df/dv)^T w (gv may be null) at s. Throws PluginError.
+  void add_jacobian_products(const pinsim_state_view& s, const double* w, double* gx,
+                             double* gv) const;
+  /// df += d f / d (component `component` of parameter `param`) at s
+  /// (pinsim_plugin.add_dforce_dparam). Throws PluginError.
+  void add_dforce_dparam(const pinsim_state_view& s, uint32_t param, uint32_t component,
+                         double* df) const;
 
   const LoadedPlugin& plugin() const { return *plugin_; }
   const std::string& context() const { return context_; }

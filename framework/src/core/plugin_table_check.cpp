@@ -17,6 +17,8 @@ constexpr std::size_t kMinorTableEnd[] = {
     offsetof(pinsim_plugin, abi_minor) + sizeof(uint32_t),  // 4.1: abi_minor
     offsetof(pinsim_plugin, constraints) + sizeof(void*),   // 4.2: constraint_set, constraints
     offsetof(pinsim_plugin, record_drift) + sizeof(void*),  // 4.3: record_drift
+    offsetof(pinsim_plugin, add_jacobian_products) + sizeof(void*),  // 4.4: add_dforce_dparam,
+                                                                     // add_jacobian_products
 };
 static_assert(std::size(kMinorTableEnd) == PINSIM_ABI_MINOR + 1, "one table end per minor");
 
@@ -80,6 +82,33 @@ void check_params(const pinsim_plugin& t, std::vector<std::string>& out) {
   }
 }
 
+/// A force's parameters flagged PINSIM_PARAM_DIFFERENTIABLE: only REAL or VEC2 ones, and
+/// with add_dforce_dparam (which, in turn, must have at least one). A table of a minor before
+/// 4.4 knows nothing of the flag: its bit is not read there.
+void check_differentiable_params(const pinsim_plugin& t, std::vector<std::string>& out) {
+  if (t.n_params > kMaxPluginParams || (t.n_params > 0 && t.params == nullptr)) return;
+  if (table_version(t).minor < 4) return;
+  uint32_t flagged = 0;
+  for (uint32_t i = 0; i < t.n_params; ++i) {
+    const pinsim_param& p = t.params[i];
+    if (!(p.flags & PINSIM_PARAM_DIFFERENTIABLE)) continue;
+    ++flagged;
+    const std::string named =
+        "parameter " + std::to_string(i) + " '" + (p.name != nullptr ? p.name : "") + "'";
+    if (p.type != PINSIM_PARAM_REAL && p.type != PINSIM_PARAM_VEC2)
+      out.push_back(named +
+                    " is flagged PINSIM_PARAM_DIFFERENTIABLE but is not a REAL or VEC2 parameter");
+    if (t.add_dforce_dparam == nullptr)
+      out.push_back(named +
+                    " is flagged PINSIM_PARAM_DIFFERENTIABLE but the plugin has no "
+                    "add_dforce_dparam function");
+  }
+  if (t.add_dforce_dparam != nullptr && flagged == 0)
+    out.push_back(
+        "provides the add_dforce_dparam function but flags no parameter "
+        "PINSIM_PARAM_DIFFERENTIABLE");
+}
+
 }  // namespace
 
 TableVersion table_version(const pinsim_plugin& t) {
@@ -135,6 +164,10 @@ pinsim_plugin table_as_read(const pinsim_plugin& t) {
     out.constraints = t.constraints;
   }
   if (v.minor >= 3 && PINSIM_TABLE_HAS(&t, record_drift)) out.record_drift = t.record_drift;
+  if (v.minor >= 4 && PINSIM_TABLE_HAS(&t, add_jacobian_products)) {
+    out.add_dforce_dparam = t.add_dforce_dparam;
+    out.add_jacobian_products = t.add_jacobian_products;
+  }
   return out;
 }
 
@@ -163,8 +196,17 @@ std::string plugin_table_problems(const pinsim_plugin& t) {
                  {PINSIM_CAP_CONSTRAINTS, "PINSIM_CAP_CONSTRAINTS", t.constraint_set != nullptr,
                   "constraint_set"},
                  {PINSIM_CAP_CONSTRAINTS, "PINSIM_CAP_CONSTRAINTS", t.constraints != nullptr,
-                  "constraints"}},
+                  "constraints"},
+                 {PINSIM_CAP_DPARAM, "PINSIM_CAP_DPARAM", t.add_dforce_dparam != nullptr,
+                  "add_dforce_dparam"},
+                 {PINSIM_CAP_JACOBIAN_PRODUCTS, "PINSIM_CAP_JACOBIAN_PRODUCTS",
+                  t.add_jacobian_products != nullptr, "add_jacobian_products"}},
                 out);
+    if (t.add_jacobian_products != nullptr && !(caps & PINSIM_CAP_DFDX))
+      out.push_back(
+          "provides the add_jacobian_products function but does not declare "
+          "PINSIM_CAP_DFDX (the products are of the Jacobians it gives)");
+    check_differentiable_params(t, out);
   } else if (t.kind == PINSIM_KIND_BACKEND) {
     check_pairs(
         caps,
@@ -174,6 +216,10 @@ std::string plugin_table_problems(const pinsim_plugin& t) {
         out);
     if (t.constraint_set != nullptr || t.constraints != nullptr)
       out.push_back("is a backend but provides the constraint functions of a force");
+    if (t.add_dforce_dparam != nullptr || t.add_jacobian_products != nullptr)
+      out.push_back(
+          "is a backend but provides the add_dforce_dparam or add_jacobian_products function of "
+          "a force");
     if (t.record_drift != nullptr && !(caps & PINSIM_CAP_DIFFERENTIABLE))
       out.push_back(
           "provides the record_drift function but does not declare "

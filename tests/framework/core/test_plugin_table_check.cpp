@@ -24,6 +24,12 @@ int constraint_set(void*, pinsim_constraint_set*, pinsim_error*) { return 0; }
 int constraints(void*, const double*, const uint64_t*, uint64_t, double*, double*, pinsim_error*) {
   return 0;
 }
+int dforce_dparam(void*, const pinsim_state_view*, uint32_t, uint32_t, double*, pinsim_error*) {
+  return 0;
+}
+int products(void*, const pinsim_state_view*, const double*, double*, double*, pinsim_error*) {
+  return 0;
+}
 
 pinsim_plugin force_table() {
   pinsim_plugin t{};
@@ -53,7 +59,7 @@ struct ShortTable {
 
 }  // namespace
 
-TEST_CASE("table version: a table of this SDK states 4.3 and is read whole") {
+TEST_CASE("table version: a table of this SDK states 4.4 and is read whole") {
   const pinsim_plugin t = force_table();
   CHECK(pinsim::table_version(t).major == PINSIM_ABI_MAJOR);
   CHECK(pinsim::table_version(t).minor == PINSIM_ABI_MINOR);
@@ -84,7 +90,7 @@ TEST_CASE("table version: another major, a short table, a newer or a missing min
   t.abi_version = PINSIM_ABI_MAJOR + 1;
   CHECK_THAT(pinsim::table_version_problem(t),
              Contains("wrong plugin ABI version: plugin has 5, this pinsim expects 4") &&
-                 Contains("this pinsim has ABI 4.3 and loads plugins of ABI 4.0 to 4.3") &&
+                 Contains("this pinsim has ABI 4.4 and loads plugins of ABI 4.0 to 4.4") &&
                  Contains("built for a newer pinsim"));
   t.abi_version = PINSIM_ABI_MAJOR - 1;
   CHECK_THAT(pinsim::table_version_problem(t), Contains("plugin has 3, this pinsim expects 4") &&
@@ -96,7 +102,7 @@ TEST_CASE("table version: another major, a short table, a newer or a missing min
   t = force_table();
   t.abi_minor = PINSIM_ABI_MINOR + 1;
   CHECK_THAT(pinsim::table_version_problem(t),
-             Contains("plugin built against ABI 4.4, newer than this pinsim's 4.3"));
+             Contains("plugin built against ABI 4.5, newer than this pinsim's 4.4"));
   t.abi_minor = 0;  // holds abi_minor, but says 4.0
   CHECK_THAT(pinsim::table_version_problem(t),
              Contains("malformed plugin table: it holds abi_minor") && Contains("states minor 0"));
@@ -205,4 +211,84 @@ TEST_CASE("table check: counts, strings and parameters") {
   t = force_table();
   t.arity = 1u << 20;
   CHECK_THAT(pinsim::plugin_table_problems(t), Contains("declares arity 1048576"));
+}
+
+TEST_CASE("table check: the 4.4 add_dforce_dparam goes with PINSIM_CAP_DPARAM and its flags") {
+  pinsim_param p[2] = {};
+  p[0] = {
+      "k",   PINSIM_PARAM_REAL, PINSIM_PARAM_DIFFERENTIABLE, {1, 0}, nullptr, nullptr, 0, HUGE_VAL,
+      "N/m", "stiffness"};
+  p[1] = {"mode", PINSIM_PARAM_STRING, 0, {0, 0}, "a", "a|b", 0, 0, "1", "mode"};
+  pinsim_plugin t = force_table();
+  t.params = p;
+  t.n_params = 2;
+  t.capabilities = PINSIM_CAP_DPARAM;
+  t.add_dforce_dparam = dforce_dparam;
+  CHECK(pinsim::plugin_table_problems(t).empty());
+  // the entry without its flag, the flag without its entry
+  t.capabilities = 0;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("provides the add_dforce_dparam function but does not declare "
+                      "PINSIM_CAP_DPARAM"));
+  t.capabilities = PINSIM_CAP_DPARAM;
+  t.add_dforce_dparam = nullptr;
+  const std::string missing = pinsim::plugin_table_problems(t);
+  CHECK_THAT(missing, Contains("declares PINSIM_CAP_DPARAM but its add_dforce_dparam function "
+                               "is NULL"));
+  CHECK_THAT(missing, Contains("parameter 0 'k' is flagged PINSIM_PARAM_DIFFERENTIABLE but the "
+                               "plugin has no add_dforce_dparam function"));
+  // a string parameter cannot be differentiated; an entry with no flagged parameter is idle
+  t.add_dforce_dparam = dforce_dparam;
+  p[1].flags = PINSIM_PARAM_DIFFERENTIABLE;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("parameter 1 'mode' is flagged PINSIM_PARAM_DIFFERENTIABLE but is not a "
+                      "REAL or VEC2 parameter"));
+  p[0].flags = p[1].flags = 0;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("provides the add_dforce_dparam function but flags no parameter"));
+  // a 4.3 table is read without it, whatever lies past its end
+  p[0].flags = PINSIM_PARAM_DIFFERENTIABLE;
+  ShortTable old(t, offsetof(pinsim_plugin, record_drift) + sizeof(void*));
+  old.table().abi_minor = 3;
+  old.table().capabilities = 0;  // bit 7 meant nothing before 4.4
+  CHECK(pinsim::table_version_problem(old.table()).empty());
+  old.table().add_jacobian_products = products;
+  CHECK(pinsim::table_as_read(old.table()).add_dforce_dparam == nullptr);
+  CHECK(pinsim::table_as_read(old.table()).add_jacobian_products == nullptr);
+  CHECK(pinsim::plugin_table_problems(pinsim::table_as_read(old.table())).empty());
+  // a table stating 4.4 must hold it
+  ShortTable cut(t, offsetof(pinsim_plugin, record_drift) + sizeof(void*));
+  CHECK_THAT(pinsim::table_version_problem(cut.table()),
+             Contains("wrong plugin table size: plugin has ABI 4.4"));
+  // and a backend never has it
+  pinsim_plugin b = force_table();
+  b.kind = PINSIM_KIND_BACKEND;
+  b.force.add_force = nullptr;
+  b.backend.advance = advance;
+  b.add_dforce_dparam = dforce_dparam;
+  CHECK_THAT(pinsim::plugin_table_problems(b),
+             Contains("is a backend but provides the add_dforce_dparam or add_jacobian_products"));
+}
+
+TEST_CASE("table check: the 4.4 add_jacobian_products goes with its flag and the Jacobians") {
+  pinsim_plugin t = force_table();
+  t.capabilities = PINSIM_CAP_DFDX | PINSIM_CAP_JACOBIAN_PRODUCTS;
+  t.force.add_jacobians = jacobians;
+  t.add_jacobian_products = products;
+  CHECK(pinsim::plugin_table_problems(t).empty());
+  t.capabilities = PINSIM_CAP_DFDX;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("provides the add_jacobian_products function but does not declare "
+                      "PINSIM_CAP_JACOBIAN_PRODUCTS"));
+  t.capabilities = PINSIM_CAP_JACOBIAN_PRODUCTS;
+  t.force.add_jacobians = nullptr;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("provides the add_jacobian_products function but does not declare "
+                      "PINSIM_CAP_DFDX"));
+  t.capabilities = PINSIM_CAP_DFDX | PINSIM_CAP_JACOBIAN_PRODUCTS;
+  t.force.add_jacobians = jacobians;
+  t.add_jacobian_products = nullptr;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("declares PINSIM_CAP_JACOBIAN_PRODUCTS but its add_jacobian_products "
+                      "function is NULL"));
 }

@@ -65,6 +65,20 @@ template <class T>
 concept HasJacobians = requires(const T& t, const StateView& s, Triplets* j) {
   t.add_jacobians(s, j, j);
 };
+/// Optional (forces, ABI 4.4): add_dforce_dparam(s, name, component, df) -> add_dforce_dparam,
+/// for the parameters declared .differentiable() (none declared: the member is not used).
+template <class T>
+concept HasDparam = requires(const T& t, const StateView& s, std::string_view name, int c,
+                             ForceOut& f) {
+  t.add_dforce_dparam(s, name, c, f);
+};
+/// Optional (forces, ABI 4.4): add_jacobian_products(s, w, gx, gv) -> add_jacobian_products
+/// (used with add_dfdx only).
+template <class T>
+concept HasJacobianProducts = requires(const T& t, const StateView& s, const Field& w,
+                                       ForceOut& g) {
+  t.add_jacobian_products(s, w, g, &g);
+};
 /// Optional: the force as soft constraints (pinsim_constraint_set): both members or neither.
 template <class T>
 concept HasConstraints = requires(const T& t, const double* x, const uint64_t* which,
@@ -212,6 +226,48 @@ const pinsim_plugin* make_table() {
           return guarded(err, [&] {
             static_cast<const T*>(self)->constraints(x, which, static_cast<std::size_t>(count), c,
                                                      dc);
+          });
+        };
+      }
+      if constexpr (HasDparam<T>) {
+        bool any = false;
+        for (const pinsim_param& p : s.params) any = any || (p.flags & PINSIM_PARAM_DIFFERENTIABLE);
+        if (any) {
+          t.capabilities |= PINSIM_CAP_DPARAM;
+          t.add_dforce_dparam = [](void* self, const pinsim_state_view* sv, uint32_t param,
+                                   uint32_t component, double* df, pinsim_error* err) noexcept {
+            return guarded(err, [&] {
+              const TableStorage& ts = st;
+              if (param >= ts.params.size() ||
+                  !(ts.params[param].flags & PINSIM_PARAM_DIFFERENTIABLE))
+                throw Error("add_dforce_dparam: parameter " + std::to_string(param) +
+                            " is not declared differentiable");
+              const int n_components = ts.params[param].type == PINSIM_PARAM_VEC2 ? 2 : 1;
+              if (component >= static_cast<uint32_t>(n_components))
+                throw Error(std::string("add_dforce_dparam: parameter '") + ts.params[param].name +
+                            "' has no component " + std::to_string(component));
+              ForceOut fo(df, 2, static_cast<Eigen::Index>(sv->n));
+              static_cast<const T*>(self)->add_dforce_dparam(
+                  StateView(*sv), std::string_view(ts.params[param].name),
+                  static_cast<int>(component), fo);
+            });
+          };
+        }
+      }
+      if constexpr (HasJacobianProducts<T> && HasDfdx<T>) {
+        t.capabilities |= PINSIM_CAP_JACOBIAN_PRODUCTS;
+        t.add_jacobian_products = [](void* self, const pinsim_state_view* sv, const double* w,
+                                     double* gx, double* gv, pinsim_error* err) noexcept {
+          return guarded(err, [&] {
+            const auto n = static_cast<Eigen::Index>(sv->n);
+            const Field wf(w, 2, n);
+            ForceOut ox(gx, 2, n);
+            if (gv == nullptr) {
+              static_cast<const T*>(self)->add_jacobian_products(StateView(*sv), wf, ox, nullptr);
+              return;
+            }
+            ForceOut ov(gv, 2, n);
+            static_cast<const T*>(self)->add_jacobian_products(StateView(*sv), wf, ox, &ov);
           });
         };
       }
