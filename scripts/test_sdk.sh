@@ -152,7 +152,9 @@ grep -q '^CMAKE_BUILD_TYPE:STRING=Debug$' "$TMP/build_debug/CMakeCache.txt" || {
 }
 
 step "pinsim check-plugin on the built template, by path and by name"
-"$PINSIM" check-plugin "$SO"
+"$PINSIM" check-plugin "$SO" | tee "$TMP/check.log"
+# its parameter derivatives (add_dforce_dparam) are checked too
+grep -Eq '^  pass +dparam ' "$TMP/check.log" || { echo "no passing dparam check" >&2; exit 1; }
 if env -u PINSIM_PLUGIN_PATH "$PINSIM" check-plugin my_anchor >"$TMP/by_name.log" 2>&1; then
   echo "check-plugin found my_anchor by name without a search path" >&2
   exit 1
@@ -164,6 +166,14 @@ env -u PINSIM_PLUGIN_PATH "$PINSIM" check-plugin my_anchor --plugin-path "$TMP/b
 step "pinsim run a scene that uses it"
 PINSIM_PLUGIN_PATH="$TMP/build:$PLUGINS" "$PINSIM" -q run "$TMP/src/scene.json" --out "$TMP/out"
 [ -s "$TMP/out/trajectory.csv" ] || { echo "the run wrote no trajectory" >&2; exit 1; }
+step "pinsim grad in its parameters, through its own derivatives"
+PINSIM_PLUGIN_PATH="$TMP/build:$PLUGINS" "$PINSIM" -q grad "$TMP/src/scene.json" \
+  --set time.duration=0.2 --loss final:0:x --wrt 'forces[0].params.k' 'forces[0].params.anchor' \
+  --out "$TMP/grad"
+grep -q '"parameter derivative": "plugin"' "$TMP/grad/gradient.json" || {
+  echo "pinsim grad did not use the template's add_dforce_dparam" >&2
+  exit 1
+}
 echo "SDK OK: template built against $(dirname "$CONFIG"), checked and run"
 if [ "$TEMPLATE_ONLY" = 0 ]; then
   test_starter

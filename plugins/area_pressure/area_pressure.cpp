@@ -31,9 +31,13 @@ PluginInfo AreaPressure::info() {
   i.params.push_back(real("k", 1000.0)
                          .min(0)
                          .units("J/m^4")
-                         .doc("area stiffness, E = k/2 (A - A0)^2 (scene units m)"));
-  i.params.push_back(real("kd", 0.0).min(0).units("J s/m^4").doc(
-      "damping of the area rate: adds -kd dA/dt dA/dp_i"));
+                         .doc("area stiffness, E = k/2 (A - A0)^2 (scene units m)")
+                         .differentiable());
+  i.params.push_back(real("kd", 0.0)
+                         .min(0)
+                         .units("J s/m^4")
+                         .doc("damping of the area rate: adds -kd dA/dt dA/dp_i")
+                         .differentiable());
   i.params.push_back(string("rest", "initial")
                          .choices("initial|value")
                          .doc("rest area: each ring's initial area, or rest_area"));
@@ -129,6 +133,19 @@ double AreaPressure::gradient(const StateView& s, std::size_t e, std::vector<Vec
     rate += g[i].dot(s.v.col(at(e, i)));
   }
   return rate;
+}
+
+void AreaPressure::add_dforce_dparam(const StateView& s, std::string_view param, int,
+                                     ForceOut& df) const {
+  const bool stiffness = param == "k";
+  if (!stiffness && param != "kd")
+    throw Error("add_dforce_dparam: no derivative in '" + std::string(param) + "'");
+  std::vector<Vec2> g;
+  for (std::size_t e = 0; e < rings(); ++e) {
+    const double rate = gradient(s, e, g);
+    const double p = stiffness ? area(s, e) - rest_[e] : rate;
+    for (std::size_t i = 0; i < g.size(); ++i) df.col(at(e, i)) -= p * g[i];
+  }
 }
 
 void AreaPressure::add_force(const StateView& s, ForceOut& f) const {

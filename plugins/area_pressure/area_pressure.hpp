@@ -4,6 +4,7 @@
 #pragma once
 
 #include <pinsim/plugin.hpp>
+#include <string_view>
 #include <vector>
 
 namespace pinsim::plugins {
@@ -15,6 +16,8 @@ class AreaPressure {
 
   /// f_i = -(k (A - A0) + kd dA/dt) dA/dp_i on every particle of every ring.
   void add_force(const StateView& s, ForceOut& f) const;
+  /// df += d f / d k = -(A - A0) dA/dp_i ("k") or d f / d kd = -dA/dt dA/dp_i ("kd").
+  void add_dforce_dparam(const StateView& s, std::string_view param, int, ForceOut& df) const;
   /// E = sum over rings of k/2 (A - A0)^2.
   double energy(const StateView& s) const;
   /// df_i/dp_j = -k g_i g_jᵀ - kd g_i h_jᵀ - (k (A - A0) + kd dA/dt) H_ij (dense per ring).

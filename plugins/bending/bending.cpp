@@ -20,7 +20,8 @@ PluginInfo Bending::info() {
       "(θ0 = 0); 'initial' takes each triple's initial angle; 'angle' uses rest_angle.";
   i.arity = 3;
   i.capabilities = PINSIM_CAP_INTERNAL;
-  i.params.push_back(real("k", 1.0).min(0).units("J").doc("bending stiffness, E = -k/2 cos θ"));
+  i.params.push_back(
+      real("k", 1.0).min(0).units("J").doc("bending stiffness, E = -k/2 cos θ").differentiable());
   i.params.push_back(
       string("shape", "flat").choices("flat|initial|angle").doc("rest shape of every triple"));
   i.params.push_back(
@@ -37,6 +38,7 @@ Bending::Bending(const CreateContext& ctx) : k_(ctx.params.real("k")) {
     // Discrete rod bending stiffness ~ EI / l (seed, "Length-dependent bending stiffness",
     // Kass): each triple's k divided by its mean initial edge length; 0 if that is 0.
     ke_.resize(ctx.elements.count);
+    dke_.resize(ctx.elements.count);
     for (std::size_t e = 0; e < ke_.size(); ++e) {
       const double la =
           (ctx.initial.x.col(idx_[3 * e + 1]) - ctx.initial.x.col(idx_[3 * e])).norm();
@@ -44,6 +46,7 @@ Bending::Bending(const CreateContext& ctx) : k_(ctx.params.real("k")) {
           (ctx.initial.x.col(idx_[3 * e + 2]) - ctx.initial.x.col(idx_[3 * e + 1])).norm();
       const double l = 0.5 * (la + lb);
       ke_[e] = l > kMinLength ? k_ / l : 0.0;
+      dke_[e] = l > kMinLength ? 1.0 / l : 0.0;
     }
   }
   ks_each_.resize(ctx.elements.count);
@@ -78,14 +81,13 @@ Bending::Bending(const CreateContext& ctx) : k_(ctx.params.real("k")) {
 double Bending::rest_angle(std::size_t e) const { return flat_ ? 0.0 : std::atan2(s0_[e], c0_[e]); }
 
 template <bool Flat, bool Scaled>
-void Bending::add_force_impl(const StateView& s, ForceOut& f) const {
+void Bending::add_force_impl(const StateView& s, ForceOut& f, double k, const double* ke) const {
   const double* x = s.x.data();
   double* out = f.data();
   const std::size_t m = idx_.size() / 3;
   const uint32_t* id = idx_.data();
-  const double* ke = ke_.data();
   for (std::size_t e = 0; e < m; ++e, id += 3) {
-    const double hk = 0.5 * (Scaled ? ke[e] : k_);
+    const double hk = 0.5 * (Scaled ? ke[e] : k);
     const uint32_t i0 = id[0], i1 = id[1], i2 = id[2];
     const double ax = x[2 * i1] - x[2 * i0], ay = x[2 * i1 + 1] - x[2 * i0 + 1];
     const double bx = x[2 * i2] - x[2 * i1], by = x[2 * i2 + 1] - x[2 * i1 + 1];
@@ -114,16 +116,26 @@ void Bending::add_force_impl(const StateView& s, ForceOut& f) const {
   }
 }
 
-void Bending::add_force(const StateView& s, ForceOut& f) const {
+void Bending::add_force_with(const StateView& s, ForceOut& f, double k, const double* ke) const {
   const bool scaled = !ke_.empty();
   if (flat_ && !scaled)
-    add_force_impl<true, false>(s, f);
+    add_force_impl<true, false>(s, f, k, ke);
   else if (flat_)
-    add_force_impl<true, true>(s, f);
+    add_force_impl<true, true>(s, f, k, ke);
   else if (!scaled)
-    add_force_impl<false, false>(s, f);
+    add_force_impl<false, false>(s, f, k, ke);
   else
-    add_force_impl<false, true>(s, f);
+    add_force_impl<false, true>(s, f, k, ke);
+}
+
+void Bending::add_force(const StateView& s, ForceOut& f) const {
+  add_force_with(s, f, k_, ke_.data());
+}
+
+void Bending::add_dforce_dparam(const StateView& s, std::string_view param, int,
+                                ForceOut& df) const {
+  if (param != "k") throw Error("add_dforce_dparam: no derivative in '" + std::string(param) + "'");
+  add_force_with(s, df, 1.0, dke_.data());
 }
 
 double Bending::energy(const StateView& s) const {
@@ -190,6 +202,39 @@ void Bending::constraints(const double* x, const uint64_t* which, std::size_t n,
 //   d2s/dadb = Π_a M Π_b / (a b)
 // With a = p1 - p0, b = p2 - p1 (da/dp = [-I, I, 0], db/dp = [0, -I, I]) and f = k/2 ds/dp,
 // df_i/dp_j = k/2 Σ D_i D_j H over the (a, b) pairs.
+void Bending::add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx,
+                                    ForceOut*) const {
+  for (std::size_t e = 0; e < idx_.size() / 3; ++e) {
+    const uint32_t p0 = idx_[3 * e], p1 = idx_[3 * e + 1], p2 = idx_[3 * e + 2];
+    const Vec2 a = s.x.col(p1) - s.x.col(p0);
+    const Vec2 b = s.x.col(p2) - s.x.col(p1);
+    const double la = a.norm(), lb = b.norm();
+    if (!(la > kMinLength && lb > kMinLength)) continue;
+    const double c = flat_ ? 1.0 : c0_[e], sn = flat_ ? 0.0 : s0_[e];
+    const Vec2 ah = a / la, bh = b / lb;
+    // M = [[c, sn], [-sn, c]]: m = M b̂, n = Mᵀ â
+    const Vec2 m(c * bh.x() + sn * bh.y(), -sn * bh.x() + c * bh.y());
+    const Vec2 n(c * ah.x() - sn * ah.y(), sn * ah.x() + c * ah.y());
+    const Vec2 wa = w.col(p1) - w.col(p0), wb = w.col(p2) - w.col(p1);
+    // Π_a u = u - â (â·u), likewise Π_b
+    const Vec2 pawa = wa - ah * ah.dot(wa), pbwb = wb - bh * bh.dot(wb);
+    const Vec2 pam = m - ah * ah.dot(m), pbn = n - bh * bh.dot(n);
+    // Haa wa = -(Π_a m (â·wa) + â (m·Π_a wa) + (â·m) Π_a wa) / a², Hbb wb likewise;
+    // Hab wb = Π_a M Π_b wb / (a b), Hba wa = Π_b Mᵀ Π_a wa / (a b)
+    const Vec2 haa = -(pam * ah.dot(wa) + ah * m.dot(pawa) + ah.dot(m) * pawa) / (la * la);
+    const Vec2 hbb = -(pbn * bh.dot(wb) + bh * n.dot(pbwb) + bh.dot(n) * pbwb) / (lb * lb);
+    const Vec2 mp(c * pbwb.x() + sn * pbwb.y(), -sn * pbwb.x() + c * pbwb.y());  // M Π_b wb
+    const Vec2 hab = (mp - ah * ah.dot(mp)) / (la * lb);
+    const Vec2 mt(c * pawa.x() - sn * pawa.y(), sn * pawa.x() + c * pawa.y());  // Mᵀ Π_a wa
+    const Vec2 hba = (mt - bh * bh.dot(mt)) / (la * lb);
+    const double h = 0.5 * k_of(e);
+    const Vec2 ga = h * (haa + hab), gb = h * (hba + hbb);
+    gx.col(p0) -= ga;
+    gx.col(p1) += ga - gb;
+    gx.col(p2) += gb;
+  }
+}
+
 void Bending::add_dfdx(const StateView& s, Triplets& J) const {
   const Mat2 id = Mat2::Identity();
   for (std::size_t e = 0; e < idx_.size() / 3; ++e) {

@@ -18,8 +18,11 @@ PluginInfo DampedSpring::info() {
   // Concurrent: an instance keeps its scratch in itself (ConstraintSpring's add_force plan),
   // nothing static; two instances may run at once.
   i.capabilities = PINSIM_CAP_INTERNAL | PINSIM_CAP_DISSIPATIVE | PINSIM_CAP_CONCURRENT;
-  i.params.push_back(real("ks", 100.0).min(0).units("N/m").doc("spring stiffness"));
-  i.params.push_back(real("kd", 1.0).min(0).units("N s/m").doc("damping along the spring"));
+  // ks and kd: their derivatives from ConstraintSpring::add_dforce_dparam
+  i.params.push_back(
+      real("ks", 100.0).min(0).units("N/m").doc("spring stiffness").differentiable());
+  i.params.push_back(
+      real("kd", 1.0).min(0).units("N s/m").doc("damping along the spring").differentiable());
   i.params.push_back(real("rest_length", -1.0)
                          .units("m")
                          .doc("rest length L for every element; < 0: each element's initial "
@@ -104,6 +107,44 @@ void DampedSpring::add_jacobians(const StateView& s, Triplets* dx, Triplets* dv)
         dv->add_block(l, k, -dxx, -dxy, -dxy, -dyy);
         dv->add_block(l, l, dxx, dxy, dxy, dyy);
       }
+    }
+  }
+}
+
+void DampedSpring::add_jacobian_products(const StateView& s, const Field& wt, ForceOut& gx,
+                                         ForceOut* gv) const {
+  if (gv != nullptr && kd() == 0.0) gv = nullptr;
+  const double* x = s.x.data();
+  const double* v = s.v.data();
+  const double* w = wt.data();
+  double* ox = gx.data();
+  double* ov = gv != nullptr ? gv->data() : nullptr;
+  const double ks = this->ks(), kd = this->kd();
+  for (std::size_t e = 0; e < count(); ++e) {
+    const uint32_t k = particle(e, 0), l = particle(e, 1);
+    const double rx = x[2 * k] - x[2 * l], ry = x[2 * k + 1] - x[2 * l + 1];
+    const double r = std::sqrt(rx * rx + ry * ry);
+    const double i = r > kMinLength ? 1.0 / r : 0.0;  // zero length: every block is zero
+    const double ex = rx * i, ey = ry * i;
+    const double ux = v[2 * k] - v[2 * l], uy = v[2 * k + 1] - v[2 * l + 1];
+    const double dx = w[2 * k] - w[2 * l], dy = w[2 * k + 1] - w[2 * l + 1];
+    const double bxx = (1.0 - ex * ex) * i, bxy = -ex * ey * i, byy = (1.0 - ey * ey) * i;
+    const double sc = ks * (r - rest_length(e)) + kd * (ex * ux + ey * uy);
+    const double wx = ks * ex + kd * (bxx * ux + bxy * uy);
+    const double wy = ks * ey + kd * (bxy * ux + byy * uy);
+    const double nd = ex * dx + ey * dy;
+    const double px = -wx * nd - sc * (bxx * dx + bxy * dy);
+    const double py = -wy * nd - sc * (bxy * dx + byy * dy);
+    ox[2 * k] += px;
+    ox[2 * k + 1] += py;
+    ox[2 * l] -= px;
+    ox[2 * l + 1] -= py;
+    if (ov != nullptr) {
+      const double qx = -kd * ex * nd, qy = -kd * ey * nd;
+      ov[2 * k] += qx;
+      ov[2 * k + 1] += qy;
+      ov[2 * l] -= qx;
+      ov[2 * l + 1] -= qy;
     }
   }
 }

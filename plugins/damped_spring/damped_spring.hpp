@@ -36,6 +36,11 @@ class DampedSpring : public ConstraintSpring<DampedSpring, 2> {
   /// equal to rounding (tests/plugins/damped_spring checks both against central differences).
   void add_jacobians(const StateView& s, Triplets* dx, Triplets* dv) const;
 
+  /// gx += (df/dx)^T w, gv += (df/dv)^T w from the same blocks without handing them over:
+  /// with d = w_k - w_l, M = -n wᵀ - s B (the (k,k) block), Mᵀ d = -w (n·d) - s B d on p_k and
+  /// its negative on p_l; -kd n (n·d) on v_k, its negative on v_l.
+  void add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut* gv) const;
+
   /// Rest length of element e, scene units.
   double rest_length(std::size_t e) const { return rest_[e]; }
 

@@ -25,11 +25,13 @@ PluginInfo Gravity::info() {
   i.arity = 1;
   i.params.push_back(
       string("mode", "uniform").choices("uniform|pairwise").doc("uniform field or pairwise"));
-  i.params.push_back(vec2("g", 0.0, -9.81).units("m/s^2").doc("uniform: acceleration"));
+  i.params.push_back(
+      vec2("g", 0.0, -9.81).units("m/s^2").doc("uniform: acceleration").differentiable());
   i.params.push_back(real("G", 1.0)
                          .min(0)
                          .units("N m^(2-alpha)/kg^2")
-                         .doc("pairwise: coupling constant, |f| = G m_k m_l R^(alpha-1)"));
+                         .doc("pairwise: coupling constant, |f| = G m_k m_l R^(alpha-1)")
+                         .differentiable());
   i.params.push_back(
       real("alpha", -1.0).min(-4).max(4).units("1").doc("pairwise: exponent of R in E"));
   i.params.push_back(
@@ -70,6 +72,10 @@ void Gravity::add_force(const StateView& s, ForceOut& f) const {
         [&](std::size_t, std::size_t b, std::size_t e) { add(b, e); }, Schedule::Even);
     return;
   }
+  add_pairwise(s, f, G_);
+}
+
+void Gravity::add_pairwise(const StateView& s, ForceOut& f, double G) const {
   const double h = 0.5 * (alpha_ - 2.0);
   for (std::size_t a = 0; a < particles_.size(); ++a) {
     const uint32_t k = particles_[a];
@@ -81,11 +87,25 @@ void Gravity::add_force(const StateView& s, ForceOut& f) const {
       const Vec2 r = s.x.col(k) - s.x.col(l);
       const double rs2 = r.squaredNorm() + eps2_;
       if (!(rs2 > kMinDist2)) continue;
-      const Vec2 fk = -G_ * mk / s.inv_mass[l] * std::pow(rs2, h) * r;
+      const Vec2 fk = -G * mk / s.inv_mass[l] * std::pow(rs2, h) * r;
       f.col(k) += fk;
       f.col(l) -= fk;
     }
   }
+}
+
+void Gravity::add_dforce_dparam(const StateView& s, std::string_view param, int component,
+                                ForceOut& df) const {
+  if (param == "g") {  // uniform: d f_i / d g_c = m_i e_c; pairwise: g is not used
+    if (pairwise_) return;
+    for (const uint32_t p : particles_) {
+      const double w = s.inv_mass[p];
+      if (w > 0.0) df(component, p) += 1.0 / w;
+    }
+    return;
+  }
+  if (param != "G") throw Error("add_dforce_dparam: no derivative in '" + std::string(param) + "'");
+  if (pairwise_) add_pairwise(s, df, 1.0);  // linear in G; uniform: G is not used
 }
 
 double Gravity::energy(const StateView& s) const {
@@ -110,6 +130,29 @@ double Gravity::energy(const StateView& s) const {
     }
   }
   return e;
+}
+
+void Gravity::add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx,
+                                    ForceOut*) const {
+  if (!pairwise_) return;
+  for (std::size_t a = 0; a < particles_.size(); ++a) {
+    const uint32_t k = particles_[a];
+    if (!(s.inv_mass[k] > 0.0)) continue;
+    for (std::size_t b = a + 1; b < particles_.size(); ++b) {
+      const uint32_t l = particles_[b];
+      if (!(s.inv_mass[l] > 0.0)) continue;
+      const Vec2 r = s.x.col(k) - s.x.col(l);
+      const double rs2 = r.squaredNorm() + eps2_;
+      if (!(rs2 > kMinDist2)) continue;
+      const double gmm = G_ / (s.inv_mass[k] * s.inv_mass[l]);
+      const double p2 = std::pow(rs2, 0.5 * (alpha_ - 2.0));
+      const Vec2 d = w.col(k) - w.col(l);
+      // K d with K = gmm [p2 I + (alpha - 2) p2 / rs2 r rᵀ]
+      const Vec2 kd = gmm * (p2 * d + (alpha_ - 2.0) * p2 / rs2 * r.dot(d) * r);
+      gx.col(k) -= kd;
+      gx.col(l) += kd;
+    }
+  }
 }
 
 void Gravity::add_dfdx(const StateView& s, Triplets& J) const {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <pinsim/plugin.hpp>
+#include <string_view>
 #include <vector>
 
 namespace pinsim::plugins {
@@ -15,6 +16,10 @@ class Gravity {
 
   /// uniform: f_i += m_i g. pairwise: f_k += -G m_k m_l R_s^(α-2) (p_k - p_l), f_l = -f_k.
   void add_force(const StateView& s, ForceOut& f) const;
+  /// df += d f / d g_c (uniform: m_i e_c on each listed particle) or d f / d G (pairwise:
+  /// the force at G = 1); 0 for the parameter the mode does not use.
+  void add_dforce_dparam(const StateView& s, std::string_view param, int component,
+                         ForceOut& df) const;
   /// uniform: E = -Σ m_i g·x_i. pairwise: E = Σ_{k<l} G m_k m_l φ(R_s),
   /// φ = R_s^α / α (α ≠ 0, α = -1 is Newton's -G m m / R), φ = ln R_s (α = 0).
   double energy(const StateView& s) const;
@@ -23,8 +28,14 @@ class Gravity {
   void add_dfdx(const StateView& s, Triplets& J) const;
   /// No velocity dependence: df/dv = 0.
   void add_dfdv(const StateView&, Triplets&) const {}
+  /// gx += (df/dx)^T w: uniform 0; pairwise, K symmetric, -K (w_k - w_l) on p_k and its
+  /// negative on p_l. gv: 0.
+  void add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut*) const;
 
  private:
+  /// pairwise: f += the attraction with coupling constant G.
+  void add_pairwise(const StateView& s, ForceOut& f, double G) const;
+
   bool pairwise_ = false;
   Vec2 g_;
   double G_ = 1.0;

@@ -22,7 +22,7 @@ PluginInfo LinearSpring::info() {
       "initial length.";
   i.arity = 2;
   i.capabilities = PINSIM_CAP_INTERNAL;
-  i.params.push_back(real("k", 100.0).min(0).units("N/m").doc("spring stiffness"));
+  i.params.push_back(real("k", 100.0).min(0).units("N/m").doc("spring stiffness").differentiable());
   i.params.push_back(real("rest_length", -1.0)
                          .units("m")
                          .doc("rest length L; 0: zero-rest-length spring; < 0: each element's "
@@ -61,7 +61,15 @@ void LinearSpring::constraints(const double* x, const uint64_t* which, std::size
   }
 }
 
-void LinearSpring::add_force(const StateView& s, ForceOut& f) const {
+void LinearSpring::add_dforce_dparam(const StateView& s, std::string_view param, int,
+                                     ForceOut& df) const {
+  if (param != "k") throw Error("add_dforce_dparam: no derivative in '" + std::string(param) + "'");
+  add_force_with(s, df, 1.0);
+}
+
+void LinearSpring::add_force(const StateView& s, ForceOut& f) const { add_force_with(s, f, k_); }
+
+void LinearSpring::add_force_with(const StateView& s, ForceOut& f, double k) const {
   const double* x = s.x.data();
   double* out = f.data();
   const std::size_t m = rest_.size();
@@ -69,10 +77,10 @@ void LinearSpring::add_force(const StateView& s, ForceOut& f) const {
     const uint32_t a = idx_[2 * e], b = idx_[2 * e + 1];
     const double rx = x[2 * a] - x[2 * b], ry = x[2 * a + 1] - x[2 * b + 1];
     const double l = rest_[e];
-    double c = k_;  // f_k = -c R with c = k (R - L)/R
+    double c = k;  // f_k = -c R with c = k (R - L)/R
     if (l != 0.0) {
       const double r = std::sqrt(rx * rx + ry * ry);
-      c = r > kMinLength ? k_ * (r - l) / r : 0.0;
+      c = r > kMinLength ? k * (r - l) / r : 0.0;
     }
     out[2 * a] -= c * rx;
     out[2 * a + 1] -= c * ry;
@@ -99,6 +107,16 @@ Mat2 LinearSpring::block(const StateView& s, std::size_t e) const {
   const Vec2 n = d / r;
   const Mat2 nn = n * n.transpose();
   return k_ * (nn + (1.0 - l / r) * (Mat2::Identity() - nn));
+}
+
+void LinearSpring::add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx,
+                                         ForceOut*) const {
+  for (std::size_t e = 0; e < rest_.size(); ++e) {
+    const uint32_t a = idx_[2 * e], b = idx_[2 * e + 1];
+    const Vec2 p = block(s, e) * (w.col(a) - w.col(b));
+    gx.col(a) -= p;
+    gx.col(b) += p;
+  }
 }
 
 void LinearSpring::add_dfdx(const StateView& s, Triplets& J) const {

@@ -4,6 +4,7 @@
 #pragma once
 
 #include <pinsim/plugin.hpp>
+#include <string_view>
 #include <vector>
 
 namespace pinsim::plugins {
@@ -15,12 +16,16 @@ class LinearSpring {
 
   /// f_k = -k (R - L) R̂ = -f_l; with L = 0 exactly f_k = -k (p_k - p_l).
   void add_force(const StateView& s, ForceOut& f) const;
+  /// df += d f / d k = -(R - L) R̂ on p_k, (R - L) R̂ on p_l (the force at k = 1).
+  void add_dforce_dparam(const StateView& s, std::string_view param, int, ForceOut& df) const;
   /// E = sum k/2 (R - L)^2.
   double energy(const StateView& s) const;
   /// df_k/dp_k = -K with K = k [R̂R̂ᵀ + (1 - L/R)(I - R̂R̂ᵀ)]; (k,l) blocks +K.
   void add_dfdx(const StateView& s, Triplets& J) const;
   /// No velocity dependence: df/dv = 0.
   void add_dfdv(const StateView&, Triplets&) const {}
+  /// gx += (df/dx)^T w: K symmetric, so -K (w_k - w_l) on p_k and its negative on p_l; gv: 0.
+  void add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut*) const;
 
   /// The springs as constraints C = R - L, dC/dp_k = R̂ = -dC/dp_l (R̂ = 0 at R = 0), with
   /// ks = k, kd = 0: E = sum k/2 C^2 (pinsim/abi.h, pinsim_constraint_set).
@@ -34,6 +39,8 @@ class LinearSpring {
   double rest_length(std::size_t e) const { return rest_[e]; }
 
  private:
+  /// f += the springs' force with stiffness k.
+  void add_force_with(const StateView& s, ForceOut& f, double k) const;
   /// 2x2 stiffness block K of element e at positions x.
   Mat2 block(const StateView& s, std::size_t e) const;
 

@@ -4,8 +4,10 @@
 //   E = k/2 |x_i - anchor|^2          (seed, "Hooke's Law for nD linear springs")
 //   f_i = -k (x_i - anchor) - c v_i    (the drag part is dissipative: it has no energy)
 //   df_i/dx_i = -k I,  df_i/dv_i = -c I
+//   df_i/dk = -(x_i - anchor),  df_i/danchor = k I,  df_i/dc = -v_i
 #include <pinsim/plugin.hpp>
 #include <string>
+#include <string_view>
 #include <vector>
 
 class MyAnchor {
@@ -18,9 +20,13 @@ class MyAnchor {
     i.doc = "Zero-rest-length spring from each listed particle to a fixed anchor, plus drag";
     i.arity = 1;  // one particle per element (2 = pairs, 3 = triples)
     i.capabilities = PINSIM_CAP_DISSIPATIVE;
-    i.params.push_back(pinsim::real("k", 10.0).min(0).units("N/m").doc("spring stiffness"));
-    i.params.push_back(pinsim::vec2("anchor", 0.0, 0.0).units("m").doc("anchor point"));
-    i.params.push_back(pinsim::real("c", 0.1).min(0).units("N s/m").doc("linear drag"));
+    // .differentiable(): add_dforce_dparam below gives df/dparam (pinsim grad, pinsim fit)
+    i.params.push_back(
+        pinsim::real("k", 10.0).min(0).units("N/m").doc("spring stiffness").differentiable());
+    i.params.push_back(
+        pinsim::vec2("anchor", 0.0, 0.0).units("m").doc("anchor point").differentiable());
+    i.params.push_back(
+        pinsim::real("c", 0.1).min(0).units("N s/m").doc("linear drag").differentiable());
     return i;
   }
 
@@ -51,6 +57,17 @@ class MyAnchor {
   }
   void add_dfdv(const pinsim::StateView&, pinsim::Triplets& J) const {
     for (uint32_t p : particles_) J.add_block(p, p, -c_ * pinsim::Mat2::Identity());
+  }
+
+  /// Optional, for gradients in the parameters: df += d f / d param (component 0, or 0 and 1
+  /// of a vec2). check-plugin compares it with differences of add_force.
+  void add_dforce_dparam(const pinsim::StateView& s, std::string_view param, int component,
+                         pinsim::ForceOut& df) const {
+    for (uint32_t p : particles_) {
+      if (param == "k") df.col(p) -= s.x.col(p) - anchor_;
+      if (param == "anchor") df(component, p) += k_;
+      if (param == "c") df.col(p) -= s.v.col(p);
+    }
   }
 
  private:

@@ -25,6 +25,9 @@
 // Jacobians (s = ks C + kd dC/dt, H = d2C/dp2):
 //   df/dx = -ks J^T J - s H - kd J^T (H v)^T       (d(J v)/dx = H v)
 //   df/dv = -kd J^T J
+// and the derivatives in the two parameters (add_dforce_dparam, for "ks" and "kd" declared
+// .differentiable(), as constraint_spring_params() declares them):
+//   df/dks = -J^T C,   df/dkd = -J^T (J v)
 #pragma once
 
 #include <algorithm>
@@ -42,8 +45,9 @@ inline std::vector<ParamDecl> constraint_spring_params(double ks_default, double
                                                        const std::string& c_units) {
   const std::string ks_units = c_units == "1" ? "J" : "J/" + c_units + "^2";
   const std::string kd_units = c_units == "1" ? "J s" : "J s/" + c_units + "^2";
-  return {real("ks", ks_default).min(0).units(ks_units).doc("stiffness: E = ks/2 C^2"),
-          real("kd", kd_default).min(0).units(kd_units).doc("damping on dC/dt")};
+  return {
+      real("ks", ks_default).min(0).units(ks_units).doc("stiffness: E = ks/2 C^2").differentiable(),
+      real("kd", kd_default).min(0).units(kd_units).doc("damping on dC/dt").differentiable()};
 }
 
 template <class Derived, uint32_t Arity>
@@ -226,6 +230,48 @@ class ConstraintSpring {
                            g.template segment<2>(2 * static_cast<int>(b)).transpose();
             dv->add_block(particle(e, a), particle(e, b), d);
           }
+      }
+    }
+  }
+
+  /// df += d f / d ks = -sum J^T C ("ks") or d f / d kd = -sum J^T (J v) ("kd"), element
+  /// after element (a derived class with other differentiable parameters defines its own and
+  /// calls this one for ks and kd).
+  void add_dforce_dparam(const StateView& s, std::string_view param, int, ForceOut& df) const {
+    const bool stiffness = param == "ks";
+    if (!stiffness && param != "kd")
+      throw Error("add_dforce_dparam: no derivative in parameter '" + std::string(param) + "'");
+    for (std::size_t e = 0; e < count(); ++e) {
+      Stencil dC;
+      const double c = self().constraint(e, gather(s.x, e), dC);
+      double coef = c;
+      if (!stiffness) {
+        const Stencil vel = gather(s.v, e);
+        coef = dC.cwiseProduct(vel).sum();
+      }
+      for (uint32_t k = 0; k < Arity; ++k) df.col(particle(e, k)) -= coef * dC.col(k);
+    }
+  }
+
+  /// gx += (df/dx)^T w and gv += (df/dv)^T w (gv may be null), element by element, with
+  /// g = dC/dp, u = ks g + kd H v and H symmetric: (df/dx)^T w = -u (g.w) - (ks C + kd g.v) H w
+  /// and (df/dv)^T w = -kd g (g.w), per element's stencil.
+  void add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut* gv) const {
+    if (gv != nullptr && kd_ == 0.0) gv = nullptr;
+    for (std::size_t e = 0; e < count(); ++e) {
+      const Stencil p = gather(s.x, e), vel = gather(s.v, e), we = gather(w, e);
+      Stencil dC;
+      const double c = self().constraint(e, p, dC);
+      const Eigen::Map<const Eigen::Matrix<double, kDofs, 1>> g(dC.data()), vv(vel.data()),
+          wv(we.data());
+      const Hessian h = hessian(e, p);
+      const double gw = g.dot(wv);
+      const double sc = ks_ * c + kd_ * g.dot(vv);
+      const Eigen::Matrix<double, kDofs, 1> r = -(ks_ * g + kd_ * (h * vv)) * gw - sc * (h * wv);
+      for (uint32_t k = 0; k < Arity; ++k) {
+        gx.col(particle(e, k)) += r.template segment<2>(2 * static_cast<int>(k));
+        if (gv != nullptr)
+          gv->col(particle(e, k)) -= kd_ * gw * g.template segment<2>(2 * static_cast<int>(k));
       }
     }
   }

@@ -99,6 +99,25 @@ class Instance {
     p.force = [this, at](const VectorXd& x, const VectorXd& v) { return force(at(x, v)); };
     return p;
   }
+  /// d f / d (component c of parameter `param`) from the plugin (PINSIM_CAP_DPARAM).
+  VectorXd dforce_dparam(const Sample& s, uint32_t param, uint32_t c) const {
+    VectorXd f = VectorXd::Zero(static_cast<Eigen::Index>(2 * s.n()));
+    const pinsim_state_view sv = s.view();
+    call("add_dforce_dparam",
+         [&](pinsim_error* e) { return t_->add_dforce_dparam(self_, &sv, param, c, f.data(), e); });
+    return f;
+  }
+  /// (df/dx)^T w (which = 0) or (df/dv)^T w (which = 1) from the plugin
+  /// (PINSIM_CAP_JACOBIAN_PRODUCTS).
+  VectorXd jacobian_product(const Sample& s, const VectorXd& w, int which) const {
+    VectorXd gx = VectorXd::Zero(w.size()), gv = gx;
+    const pinsim_state_view sv = s.view();
+    call("add_jacobian_products", [&](pinsim_error* e) {
+      return t_->add_jacobian_products(self_, &sv, w.data(), gx.data(),
+                                       which == 1 ? gv.data() : nullptr, e);
+    });
+    return which == 0 ? gx : gv;
+  }
   /// Dense df/dx (which = 0) or df/dv (which = 1).
   MatrixXd jacobian(const Sample& s, int which) const {
     const auto m = static_cast<Eigen::Index>(2 * s.n());

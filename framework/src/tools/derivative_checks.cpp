@@ -1,5 +1,6 @@
 // check-plugin's finite-difference checks: f = -dE/dx, df/dx and df/dv, and the constraint
 // entry against the energy, the force and differences of C.
+#include <algorithm>
 #include <string>
 
 #include "core/format.hpp"
@@ -137,6 +138,115 @@ CheckResult Checker::constraint_check(int which) {
       keep_worst(r, e2, ok,
                  state + detail + "; error " + num(e1, 3) + " at h, " + num(e2, 3) + " at h/2" +
                      (ok ? "" : " (does not converge)"));
+    }
+  }
+  return r;
+}
+
+// d f / d theta from the plugin (add_dforce_dparam) for every parameter it flags
+// PINSIM_PARAM_DIFFERENTIABLE, against differences of add_force over instances created with
+// theta moved by h = kStep max(|theta|, 1): central, (f(theta + h) - f(theta - h)) / (2 h),
+// or where a bound leaves one side only the one-sided second-order
+// (-3 f(theta) + 4 f(theta + h) - f(theta + 2 h)) / (2 h) (h < 0 for the lower side);
+// both O(h^2), so step halving applies.
+CheckResult Checker::dparam_check() {
+  CheckResult r{"dparam",
+                "d f / d parameter against differences of f over the parameter, step halving",
+                CheckStatus::Pass,
+                0.0,
+                opt_.fd_tolerance,
+                ""};
+  if (!(t_->capabilities & PINSIM_CAP_DPARAM) || t_->add_dforce_dparam == nullptr) {
+    r.status = CheckStatus::Skip;
+    r.detail = "no parameter derivatives (PINSIM_CAP_DPARAM not declared)";
+    return r;
+  }
+  const nlohmann::json values = nlohmann::json::parse(params_);
+  // whether theta + d stays inside the parameter's declared bounds
+  auto inside = [](const pinsim_param& p, double x) {
+    const bool lo = (p.flags & PINSIM_PARAM_MIN_EXCLUSIVE) ? x > p.min : x >= p.min;
+    const bool hi = (p.flags & PINSIM_PARAM_MAX_EXCLUSIVE) ? x < p.max : x <= p.max;
+    return lo && hi;
+  };
+  int checked = 0;
+  for (int trial = 0; trial < opt_.trials; ++trial) {
+    const Sample init = rest_state();
+    const Sample s = random_state();
+    auto inst = make(init);
+    for (uint32_t i = 0; i < t_->n_params; ++i) {
+      const pinsim_param& p = t_->params[i];
+      if (!(p.flags & PINSIM_PARAM_DIFFERENTIABLE)) continue;
+      const int comps = p.type == PINSIM_PARAM_VEC2 ? 2 : 1;
+      for (int c = 0; c < comps; ++c) {
+        const nlohmann::json& v = values.at(p.name);
+        const double theta =
+            v.is_array() ? v.at(static_cast<std::size_t>(c)).get<double>() : v.get<double>();
+        const VectorXd a = inst->dforce_dparam(s, i, static_cast<uint32_t>(c));
+        auto force_at = [&](double x) { return make_with(init, p.name, c, x)->force(s); };
+        auto fd = [&](double h) -> VectorXd {
+          if (inside(p, theta - h) && inside(p, theta + h))
+            return (force_at(theta + h) - force_at(theta - h)) / (2 * h);
+          const double d = inside(p, theta + 2 * h) ? h : -h;
+          return (-3.0 * inst->force(s) + 4.0 * force_at(theta + d) - force_at(theta + 2 * d)) /
+                 (2 * d);
+        };
+        const double h = kStep * std::max(std::abs(theta), 1.0);
+        if (!inside(p, theta + 2 * h) && !inside(p, theta - 2 * h)) continue;  // no room
+        ++checked;
+        const VectorXd g1 = fd(h), g2 = fd(h / 2);
+        Eigen::Index at = 0;
+        const double e1 = rel(a, g1, nullptr), e2 = rel(a, g2, &at);
+        const Eigen::Index j = at / 1000;
+        const bool ok = converged(e1, e2);
+        const std::string what = std::string(p.name) + (comps == 2 ? (c == 0 ? "[0]" : "[1]") : "");
+        keep_worst(r, e2, ok,
+                   "state " + std::to_string(trial) + ", d(" + dof_name(j) + ")/d " + what +
+                       " at " + what + " = " + num(theta, 6) + ": plugin " + num(a[j], 3) +
+                       ", difference " + num(g2[j], 3) + "; error " + num(e1, 3) + " at h, " +
+                       num(e2, 3) + " at h/2" + (ok ? "" : " (does not converge)"));
+      }
+    }
+  }
+  if (checked == 0) {
+    r.status = CheckStatus::Skip;
+    r.detail = "every differentiable parameter sits where its bounds leave no room to differ";
+  }
+  return r;
+}
+
+// The plugin's transposed Jacobian products (add_jacobian_products) against its Jacobians'
+// entries multiplied out, (df/dx)^T w and (df/dv)^T w for random w: the same numbers up to
+// rounding (the entries themselves are checked against differences by dfdx and dfdv).
+CheckResult Checker::products_check() {
+  CheckResult r{"jacobian_products",
+                "(df/dx)^T w and (df/dv)^T w against the Jacobians' entries, random w",
+                CheckStatus::Pass,
+                0.0,
+                opt_.identity_tolerance,
+                ""};
+  if (!(t_->capabilities & PINSIM_CAP_JACOBIAN_PRODUCTS) || t_->add_jacobian_products == nullptr ||
+      t_->force.add_jacobians == nullptr) {
+    r.status = CheckStatus::Skip;
+    r.detail = "no Jacobian products (PINSIM_CAP_JACOBIAN_PRODUCTS not declared)";
+    return r;
+  }
+  for (int trial = 0; trial < opt_.trials; ++trial) {
+    const Sample init = rest_state();
+    const Sample s = random_state();
+    auto inst = make(init);
+    VectorXd w(static_cast<Eigen::Index>(2 * s.n()));
+    for (Eigen::Index j = 0; j < w.size(); ++j) w[j] = uni(-1, 1);
+    for (int which = 0; which < 2; ++which) {
+      if (which == 1 && !(t_->capabilities & PINSIM_CAP_DFDV)) continue;
+      const VectorXd want = inst->jacobian(s, which).transpose() * w;
+      const VectorXd got = inst->jacobian_product(s, w, which);
+      Eigen::Index at = 0;
+      const double e = rel(got, want, &at);
+      const Eigen::Index j = at / 1000;
+      keep_worst(r, e, e <= r.tolerance,
+                 "state " + std::to_string(trial) + ", " + (which == 0 ? "(df/dx)" : "(df/dv)") +
+                     "^T w at " + dof_name(j) + ": plugin " + num(got[j], 6) + ", entries " +
+                     num(want[j], 6) + "; error " + num(e, 3));
     }
   }
   return r;

@@ -50,6 +50,8 @@ CheckReport Checker::run() {
       {"constraint_energy", [&] { return constraint_check(0); }},
       {"constraint_force", [&] { return constraint_check(1); }},
       {"constraint_gradient", [&] { return constraint_check(2); }},
+      {"dparam", [&] { return dparam_check(); }},
+      {"jacobian_products", [&] { return products_check(); }},
   };
   for (const auto& [name, fn] : checks) {
     if (!opt_.only.empty() && name != opt_.only) continue;
@@ -57,6 +59,11 @@ CheckReport Checker::run() {
     // for by name): a plugin without them is not one check short.
     if (opt_.only.empty() && name.rfind("constraint_", 0) == 0 &&
         !(t_->capabilities & PINSIM_CAP_CONSTRAINTS))
+      continue;
+    // likewise the parameter derivatives (ABI 4.4)
+    if (opt_.only.empty() && name == "dparam" && !(t_->capabilities & PINSIM_CAP_DPARAM)) continue;
+    if (opt_.only.empty() && name == "jacobian_products" &&
+        !(t_->capabilities & PINSIM_CAP_JACOBIAN_PRODUCTS))
       continue;
     try {
       rep.checks.push_back(fn());

@@ -97,6 +97,17 @@ class Checker {
   std::unique_ptr<Instance> make(const Sample& initial) {
     return std::make_unique<Instance>(t_, params_, initial, layout_);
   }
+  /// An instance whose parameter `name` (component c of a vec2) is `value`, the others as
+  /// checked.
+  std::unique_ptr<Instance> make_with(const Sample& initial, const std::string& name, int c,
+                                      double value) {
+    nlohmann::json p = nlohmann::json::parse(params_);
+    if (p.at(name).is_array())
+      p[name][static_cast<std::size_t>(c)] = value;
+    else
+      p[name] = value;
+    return std::make_unique<Instance>(t_, p.dump(), initial, layout_);
+  }
 
   // --- finite differences ----------------------------------------------------------------
   /// Relative discrepancy between an analytic array and its finite-difference estimate.
@@ -124,6 +135,8 @@ class Checker {
   CheckResult degenerate_check();
   CheckResult dissipation_check();
   CheckResult constraint_check(int which);
+  CheckResult dparam_check();
+  CheckResult products_check();
 
   /// Records a state's error; the reported worst is the worst failing one if any failed.
   static void keep_worst(CheckResult& r, double err, bool ok, const std::string& detail) {

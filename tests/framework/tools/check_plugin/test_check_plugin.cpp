@@ -36,12 +36,15 @@ void require_pass(const pinsim::CheckReport& r, std::initializer_list<const char
   }
 }
 
+/// Every shipped internal force but area_pressure also gives its parameter derivatives
+/// (dparam) and its Jacobians' products (jacobian_products).
 const std::initializer_list<const char*> kInternal = {
-    "gradient", "dfdx", "dfdv", "momentum", "angular_momentum", "rigid_invariance", "degenerate"};
+    "gradient",         "dfdx",       "dfdv",   "momentum",         "angular_momentum",
+    "rigid_invariance", "degenerate", "dparam", "jacobian_products"};
 /// A damped internal force also runs the dissipation check.
 const std::initializer_list<const char*> kDamped = {
-    "gradient",         "dfdx",       "dfdv",       "momentum", "angular_momentum",
-    "rigid_invariance", "degenerate", "dissipation"};
+    "gradient",         "dfdx",       "dfdv",        "momentum", "angular_momentum",
+    "rigid_invariance", "degenerate", "dissipation", "dparam",   "jacobian_products"};
 
 /// The named check was skipped (the plugin does not claim what it checks).
 void require_skip(const pinsim::CheckReport& r, const std::string& name) {
@@ -83,7 +86,9 @@ TEST_CASE("shipped: bending, flat, initial and fixed rest angle") {
 }
 
 TEST_CASE("shipped: gravity, uniform and pairwise") {
-  require_pass(check("gravity"), {"gradient", "dfdx", "dfdv", "degenerate"});
+  require_pass(check("gravity"),
+               {"gradient", "dfdx", "dfdv", "degenerate", "dparam", "jacobian_products"});
+  require_pass(check("gravity", {{"g", {1.5, -3.0}}}), {"dparam"});
   require_skip(check("gravity"), "dissipation");
   for (double alpha : {-1.0, 0.0, 1.5})
     for (double eps : {0.0, 0.05})
@@ -152,6 +157,32 @@ TEST_CASE("fixture with a wrong Jacobian fails the dfdx check only") {
   const auto r = check_fixture("libfixture_wrong_jacobian.so");
   require_fail(r, "dfdx");
   CHECK(r.find("gradient")->status == pinsim::CheckStatus::Pass);
+}
+
+TEST_CASE("parameter derivatives: a wrong one fails, at a bound the other side is used") {
+  // d f / d k counted twice: |2 g - g| / (|2 g| + |g|) = 1/3 at both steps
+  const auto r = check_fixture("libfixture_wrong_dparam.so");
+  require_fail(r, "dparam");
+  CHECK(r.find("dparam")->worst == Approx(1.0 / 3.0).epsilon(1e-3));
+  CHECK(r.find("dparam")->detail.find("d k at k = 10") != std::string::npos);
+  CHECK(r.find("gradient")->status == pinsim::CheckStatus::Pass);
+  // kd = 0 sits on its bound (min 0): the one-sided difference still checks it
+  require_pass(check("damped_spring", {{"kd", 0.0}}), {"dparam"});
+  require_pass(check("area_pressure", {{"kd", 0.0}}), {"dparam"});
+  // a plugin without the entry is not one check short
+  CHECK(check_fixture("libfixture_wrong_jacobian.so").find("dparam") == nullptr);
+}
+
+TEST_CASE("Jacobian products: wrong ones fail, against the plugin's own entries") {
+  // the products drop the (1 - L/R)(I - R̂R̂ᵀ) term that the Jacobian's entries have
+  const auto r = check_fixture("libfixture_wrong_products.so");
+  require_fail(r, "jacobian_products");
+  CHECK(r.find("dfdx")->status == pinsim::CheckStatus::Pass);
+  CHECK(r.find("jacobian_products")->worst > 1e-3);
+  // area_pressure forms its entries only: not one check short
+  CHECK(check("area_pressure").find("jacobian_products") == nullptr);
+  require_pass(check("damped_spring", {{"kd", 0.0}}), {"jacobian_products"});
+  require_pass(check("gravity", {{"mode", "pairwise"}, {"alpha", 0.5}}), {"jacobian_products"});
 }
 
 TEST_CASE("fixture that divides by zero at a degenerate state fails the degenerate check") {
