@@ -1,5 +1,5 @@
 // pinsim grad SCENE --loss L --wrt PATH... [--out DIR] [--set PATH=VALUE]...
-//            [--integrator NAME] [--threads N] [--segment S]
+//            [--integrator NAME] [--threads N] [--segment S] [--parameter-derivative M]
 #include <spdlog/spdlog.h>
 
 #include <filesystem>
@@ -26,6 +26,7 @@ struct GradArgs {
   std::string integrator;
   unsigned threads = 0;
   uint64_t segment = 0;
+  std::string parameter_derivative = "plugin";
 };
 
 int grad_command(const GradArgs& a) {
@@ -35,6 +36,7 @@ int grad_command(const GradArgs& a) {
   opt.run.integrator = a.integrator;
   opt.run.threads = a.threads;
   opt.segment = a.segment;
+  opt.plugin_parameter_derivatives = a.parameter_derivative == "plugin";
   if (!a.out.empty()) {
     std::error_code ec;
     std::filesystem::create_directories(a.out, ec);
@@ -98,6 +100,11 @@ void add_grad_command(CLI::App& app) {
       ->check(CLI::Range(1u, kMaxThreads));
   c->add_option("--segment", a->segment,
                 "Steps between checkpoints (default: the square root of the steps)");
+  c->add_option("--parameter-derivative", a->parameter_derivative,
+                "plugin: a force's derivative in a parameter from its plugin where it gives "
+                "it, else central differences of the plugin (default); differences: always "
+                "the differences (to cross-check a plugin's)")
+      ->check(CLI::IsMember({"plugin", "differences"}));
   c->callback([a] { throw CLI::RuntimeError(grad_command(*a)); });
 }
 

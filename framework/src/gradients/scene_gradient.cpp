@@ -229,15 +229,16 @@ struct ParamSlot {
 
 /// The forces of a Simulation as a ForceModel: values and Jacobians from the plugins (their
 /// Jacobian entries, or the host's finite differences for a plugin without them), and their
-/// derivatives in parameters by central differences of instances created with the parameter
-/// moved by +-eps:
+/// derivatives in parameters from the plugin's add_dforce_dparam where it gives the parameter's
+/// (ABI 4.4), else by central differences of instances created with the parameter moved by
+/// +-eps:
 ///   d f / d theta = (f(theta + eps) - f(theta - eps)) / (2 eps) + O(eps^2),
 /// one-sided where theta - eps or theta + eps is outside the parameter's bounds.
 class SimulationForces : public ForceModel {
  public:
   SimulationForces(Simulation& sim, const Scene& scene, PluginLoader& loader,
-                   const std::vector<WrtValue>& wrt, double rel_eps)
-      : sim_(sim) {
+                   const std::vector<WrtValue>& wrt, double rel_eps, bool plugin_derivatives)
+      : sim_(sim), plugin_derivatives_(plugin_derivatives) {
     for (const auto& f : sim.forces())
       if (!f->provides_dfdx() || (f->velocity_dependent() && !f->provides_dfdv()))
         all_exact_ = false;
@@ -252,9 +253,9 @@ class SimulationForces : public ForceModel {
         const double up = std::min(theta + eps, v.upper), down = std::max(theta - eps, v.lower);
         slot_index_.push_back({w, static_cast<int>(c), slots_});
         if (v.kind == WrtValue::Kind::kForceParameter) {
-          add_parameter(scene, loader, v, static_cast<int>(c), up, down);
+          add_parameter(scene, loader, w, v, static_cast<int>(c), up, down);
         } else {
-          add_rest_source(scene, loader, v, static_cast<int>(c), up, down);
+          add_rest_source(scene, loader, w, v, static_cast<int>(c), up, down);
         }
         ++slots_;
       }
@@ -270,6 +271,14 @@ class SimulationForces : public ForceModel {
     return -1;
   }
   uint64_t extra_force_evals() const { return extra_evals_; }
+  /// Calls of a plugin's add_dforce_dparam.
+  uint64_t dparam_evals() const { return dparam_evals_; }
+  /// Whether resolved value w's parameter derivative comes from its plugin.
+  bool from_plugin(std::size_t w) const {
+    for (const Entry& e : entries_)
+      if (e.wrt == w) return e.dparam >= 0;
+    return false;
+  }
 
   void force(const State& s, Eigen::Matrix2Xd& f) override { sim_.compute_forces(s, f); }
 
@@ -298,15 +307,19 @@ class SimulationForces : public ForceModel {
       ForceModel::vjp_part(part, s, w, gx, gv);
       return;
     }
-    // the plugins' entries straight into the products, no matrix assembled; a force that
-    // depends on the positions only has df/dv = 0
+    // the plugins' products (ABI 4.4), or their entries straight into the products, no
+    // matrix assembled; a force that depends on the positions only has df/dv = 0
     const pinsim_state_view view = s.view();
     TransposedProduct px{w.data(), gx.data()}, pv{w.data(), gv.data()};
     const pinsim_triplet_sink sx = px.sink(), sv = pv.sink();
-    for (const auto& f : sim_.forces())
-      if (in_part(*f, part))
-        f->add_jacobians(view, &sx,
-                         f->provides_dfdv() && part != Part::kPositionOnly ? &sv : nullptr);
+    for (const auto& f : sim_.forces()) {
+      if (!in_part(*f, part)) continue;
+      const bool with_v = f->provides_dfdv() && part != Part::kPositionOnly;
+      if (f->provides_jacobian_products())
+        f->add_jacobian_products(view, w.data(), gx.data(), with_v ? gv.data() : nullptr);
+      else
+        f->add_jacobians(view, &sx, with_v ? &sv : nullptr);
+    }
   }
 
   void param_vjp_part(Part part, const State& s, const Eigen::Matrix2Xd& w,
@@ -318,6 +331,13 @@ class SimulationForces : public ForceModel {
     for (const Entry& e : entries_) {
       if (!in_part(*sim_.forces()[e.force], part)) continue;
       fp.setZero(2, s.x.cols());
+      if (e.dparam >= 0) {  // the plugin's own derivative
+        sim_.forces()[e.force]->add_dforce_dparam(view, static_cast<uint32_t>(e.dparam),
+                                                  e.component, fp.data());
+        ++dparam_evals_;
+        gp[e.slot] += w.cwiseProduct(fp).sum();
+        continue;
+      }
       fm.setZero(2, s.x.cols());
       e.plus->add_force(view, fp.data());
       if (e.minus) {
@@ -335,6 +355,13 @@ class SimulationForces : public ForceModel {
   /// differences); else the default.
   void param_jacobian_vjp(const State& s, const Eigen::Matrix2Xd& w, const Eigen::Matrix2Xd& a,
                           const Eigen::Matrix2Xd& c, double eps, Eigen::VectorXd& gp) override {
+    // every derivative from its plugin: differences of those along (a, c), no difference in
+    // a parameter at all
+    if (std::all_of(entries_.begin(), entries_.end(),
+                    [](const Entry& e) { return e.dparam >= 0; })) {
+      ForceModel::param_jacobian_vjp(s, w, a, c, eps, gp);
+      return;
+    }
     for (const Entry& e : entries_) {
       const ForceInstance& f = *sim_.forces()[e.force];
       if (!f.provides_dfdx() || (f.velocity_dependent() && !f.provides_dfdv())) {
@@ -368,9 +395,12 @@ class SimulationForces : public ForceModel {
   /// (a one-sided difference).
   struct Entry {
     Eigen::Index slot = 0;
+    std::size_t wrt = 0;  ///< the resolved value
     std::size_t force = 0;
     std::unique_ptr<ForceInstance> plus, minus;
     double denominator = 1.0;
+    int64_t dparam = -1;  ///< the plugin's parameter index when it gives the derivative
+    uint32_t component = 0;
   };
 
   static bool in_part(const ForceInstance& f, Part part) {
@@ -384,11 +414,17 @@ class SimulationForces : public ForceModel {
     return a;
   }
 
-  void add_parameter(const Scene& scene, PluginLoader& loader, const WrtValue& v, int c, double up,
-                     double down) {
+  /// The parameter's instances moved by +-eps are made even when the plugin gives its
+  /// derivative: implicit Euler's second-order term differences their Jacobians when another
+  /// value's derivative is a difference.
+  void add_parameter(const Scene& scene, PluginLoader& loader, std::size_t wrt_index,
+                     const WrtValue& v, int c, double up, double down) {
     Entry e;
     e.slot = slots_;
+    e.wrt = wrt_index;
     e.force = v.index;
+    e.dparam = plugin_derivatives_ ? sim_.forces()[v.index]->dparam_index(v.param) : -1;
+    e.component = static_cast<uint32_t>(c);
     ForceSpec spec = scene.forces[v.index];
     const State initial = scene.initial_state();
     spec.params[v.param] = moved(v, c, up);
@@ -406,8 +442,8 @@ class SimulationForces : public ForceModel {
   /// again from it moved by +-eps; a force whose value at the initial state does not change
   /// (gravity, or a body's springs when the whole body moves) does not depend on it and is
   /// left out.
-  void add_rest_source(const Scene& scene, PluginLoader& loader, const WrtValue& v, int c,
-                       double up, double down) {
+  void add_rest_source(const Scene& scene, PluginLoader& loader, std::size_t wrt_index,
+                       const WrtValue& v, int c, double up, double down) {
     const State initial = scene.initial_state();
     const double theta = v.value[static_cast<std::size_t>(c)];
     for (std::size_t k = 0; k < scene.forces.size(); ++k) {
@@ -421,6 +457,7 @@ class SimulationForces : public ForceModel {
       }
       Entry e;
       e.slot = slots_;
+      e.wrt = wrt_index;
       e.force = k;
       e.plus = create_force(scene, loader, scene.forces[k], sp);
       e.minus = create_force(scene, loader, scene.forces[k], sm);
@@ -437,9 +474,14 @@ class SimulationForces : public ForceModel {
   static double jacobian_product(const ForceInstance& f, const State& s, const Eigen::Matrix2Xd& w,
                                  const Eigen::Matrix2Xd& a, const Eigen::Matrix2Xd& c) {
     Eigen::Matrix2Xd kx = Eigen::Matrix2Xd::Zero(2, w.cols()), dv = kx;
-    TransposedProduct px{w.data(), kx.data()}, pv{w.data(), dv.data()};
-    const pinsim_triplet_sink sx = px.sink(), sv = pv.sink();
-    f.add_jacobians(s.view(), &sx, f.provides_dfdv() ? &sv : nullptr);
+    if (f.provides_jacobian_products()) {
+      f.add_jacobian_products(s.view(), w.data(), kx.data(),
+                              f.provides_dfdv() ? dv.data() : nullptr);
+    } else {
+      TransposedProduct px{w.data(), kx.data()}, pv{w.data(), dv.data()};
+      const pinsim_triplet_sink sx = px.sink(), sv = pv.sink();
+      f.add_jacobians(s.view(), &sx, f.provides_dfdv() ? &sv : nullptr);
+    }
     const double y = kx.cwiseProduct(a).sum() + dv.cwiseProduct(c).sum();
     return y;
   }
@@ -459,6 +501,7 @@ class SimulationForces : public ForceModel {
   };
 
   Simulation& sim_;
+  bool plugin_derivatives_ = true;
   Eigen::Matrix2Xd fp_, fm_;  ///< param_vjp's forces, kept between calls
   /// Every force gives its Jacobians (df/dv too where it may depend on v).
   bool all_exact_ = true;
@@ -466,6 +509,7 @@ class SimulationForces : public ForceModel {
   std::vector<SlotIndex> slot_index_;
   Eigen::Index slots_ = 0;
   uint64_t extra_evals_ = 0;
+  uint64_t dparam_evals_ = 0;
   Eigen::SparseMatrix<double> k_, d_;
   uint64_t hash_ = 0;
   bool have_ = false;
@@ -652,7 +696,8 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
                      "' cannot differentiate its step (it does not declare "
                      "PINSIM_CAP_DIFFERENTIABLE); differentiable backends: none, sdf");
   const std::vector<WrtValue> values = resolve_wrt(scene, sim, wrt);
-  SimulationForces model(sim, scene, loader, values, options.rel_eps);
+  SimulationForces model(sim, scene, loader, values, options.rel_eps,
+                         options.plugin_parameter_derivatives);
   const double h = scene.dt;
   const uint64_t steps = scene.steps();
   const LossContext ctx{steps, h, sim.state().size()};
@@ -754,6 +799,7 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
   r.backward_s = seconds_since(t0);
   r.backward_force_evals = sim.force_evaluations() - evals1 + model.extra_force_evals();
   r.jacobian_evals = sim.jacobian_evaluations() - jac1;
+  r.dparam_evals = model.dparam_evals();
   if (!(r.replay_deviation <= kReplayTolerance))
     throw std::runtime_error(scene.label + ": the replay of a checkpointed segment left the " +
                              "forward run by " + num(r.replay_deviation) +
@@ -788,6 +834,7 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
           break;
         case WrtValue::Kind::kForceParameter:
           g.gradient[c] = gp;
+          g.plugin_derivative = model.from_plugin(w);
           r.any_parameter = true;
           break;
         case WrtValue::Kind::kMaterial: {
@@ -815,7 +862,7 @@ nlohmann::json GradientReport::to_json() const {
     for (double x : p.wrt.value) v.push_back(x);
     nlohmann::json e = {{"value", v}, {"gradient", g}, {"kind", kind_name(p.wrt.kind)}};
     if (p.wrt.kind == WrtValue::Kind::kForceParameter) {
-      e["parameter derivative"] = "finite differences";
+      e["parameter derivative"] = p.plugin_derivative ? "plugin" : "finite differences";
     } else if (p.wrt.kind == WrtValue::Kind::kPosition ||
                p.wrt.kind == WrtValue::Kind::kBodyPosition) {
       e["rest values"] = "finite differences";
@@ -850,15 +897,29 @@ nlohmann::json GradientReport::to_json() const {
         {"forward_force_evaluations", forward_force_evals},
         {"backward_force_evaluations", backward_force_evals},
         {"backward_jacobian_evaluations", jacobian_evals},
+        {"parameter_derivative_evaluations", dparam_evals},
         {"transposed_solves", stats.solves},
         {"worst_solve_residual", stats.worst_residual}}},
   };
-  if (any_parameter)
-    out["parameter derivative"] = {{"method", "finite differences"},
-                                   {"relative_step", rel_eps},
-                                   {"formula",
-                                    "(f(theta + eps) - f(theta - eps)) / (2 eps), "
-                                    "eps = relative_step max(|theta|, 1)"}};
+  if (any_parameter) {
+    bool plugin = false, differences = false;
+    for (const PathGradient& p : paths)
+      if (p.wrt.kind == WrtValue::Kind::kForceParameter)
+        (p.plugin_derivative ? plugin : differences) = true;
+    nlohmann::json d = {{"method", plugin && differences ? "plugin and finite differences"
+                                   : plugin              ? "plugin"
+                                                         : "finite differences"}};
+    if (plugin)
+      d["plugin"] =
+          "the force plugin's add_dforce_dparam: d f / d theta at the step's state (check-plugin "
+          "compares it with central differences)";
+    if (differences) {
+      d["relative_step"] = rel_eps;
+      d["formula"] =
+          "(f(theta + eps) - f(theta - eps)) / (2 eps), eps = relative_step max(|theta|, 1)";
+    }
+    out["parameter derivative"] = d;
+  }
   return out;
 }
 

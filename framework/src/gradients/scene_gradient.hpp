@@ -56,12 +56,18 @@ struct GradientOptions {
   /// Relative step of the central differences of a force in its parameters (and in the
   /// initial positions its rest values come from): eps = rel_eps max(|theta|, 1).
   double rel_eps = 1e-6;
+  /// A force's derivative in a parameter from its plugin (add_dforce_dparam, ABI 4.4) where
+  /// the plugin gives it; false: central differences for every parameter.
+  bool plugin_parameter_derivatives = true;
 };
 
 /// The gradient of one value.
 struct PathGradient {
   WrtValue wrt;
   Eigen::VectorXd gradient;  ///< d loss / d value, one per component
+  /// A force parameter's derivative came from its plugin (add_dforce_dparam), not from
+  /// finite differences.
+  bool plugin_derivative = false;
 };
 
 /// What scene_gradient found.
@@ -78,6 +84,7 @@ struct GradientReport {
   double forward_s = 0.0, backward_s = 0.0;                    ///< wall time of each pass
   uint64_t forward_force_evals = 0, backward_force_evals = 0;  ///< force sums over all forces
   uint64_t jacobian_evals = 0;                                 ///< Jacobian assemblies (backward)
+  uint64_t dparam_evals = 0;  ///< calls of the plugins' add_dforce_dparam (backward)
   AdjointStats stats;
   uint64_t state_hash = 0;  ///< of the final state: the one `pinsim run` reaches
   double rel_eps = 0.0;     ///< of the parameter derivatives

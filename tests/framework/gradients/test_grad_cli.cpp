@@ -40,8 +40,9 @@ TEST_CASE("grad cli: gradient.json, and the run is the one pinsim run makes", "[
   CHECK(j["paths"]["particles[1].v"]["gradient"].size() == 2);
   CHECK(j["paths"]["particles[1].v"]["value"] == nlohmann::json::array({0.1, 0.2}));
   CHECK(j["paths"]["forces[0].params.k"]["gradient"].size() == 1);
-  CHECK(j["paths"]["forces[0].params.k"]["parameter derivative"] == "finite differences");
-  CHECK(j["parameter derivative"]["method"] == "finite differences");
+  // linear_spring gives d f / d k itself (ABI 4.4 add_dforce_dparam)
+  CHECK(j["paths"]["forces[0].params.k"]["parameter derivative"] == "plugin");
+  CHECK(j["parameter derivative"]["method"] == "plugin");
   CHECK(j["differentiable"] == true);
   CHECK(j["cost"]["forward_s"].get<double>() > 0.0);
   CHECK(j["cost"]["backward_s"].get<double>() > 0.0);
@@ -54,6 +55,32 @@ TEST_CASE("grad cli: gradient.json, and the run is the one pinsim run makes", "[
   CHECK(row.rfind("0.3,1,", 0) == 0);
   const double x = std::stod(row.substr(6));
   CHECK(j["loss"].get<double>() == x);
+}
+
+TEST_CASE("grad cli: --parameter-derivative differences, to cross-check a plugin's",
+          "[gradients][cli]") {
+  const auto dir = test::temp_dir("grad_cli_fd");
+  const std::string scene = PINSIM_SOURCE_DIR "/configs/two_mass_oscillator.json";
+  const std::string common = "grad " + scene +
+                             " --set time.duration=0.3 --loss final:1:x --wrt "
+                             "'forces[0].params.k' --out ";
+  const auto p = test::pinsim_cli(common + (dir / "p").string());
+  const auto d =
+      test::pinsim_cli(common + (dir / "d").string() + " --parameter-derivative differences");
+  INFO(p.output << d.output);
+  REQUIRE(p.code == 0);
+  REQUIRE(d.code == 0);
+  const nlohmann::json jp = read_json(dir / "p" / "gradient.json");
+  const nlohmann::json jd = read_json(dir / "d" / "gradient.json");
+  CHECK(jd["paths"]["forces[0].params.k"]["parameter derivative"] == "finite differences");
+  CHECK(jd["parameter derivative"]["relative_step"] == 1e-6);
+  const double gp = jp["paths"]["forces[0].params.k"]["gradient"][0].get<double>();
+  const double gd = jd["paths"]["forces[0].params.k"]["gradient"][0].get<double>();
+  CHECK(gp == Approx(gd).epsilon(1e-7));
+  const auto bad =
+      test::pinsim_cli(common + (dir / "b").string() + " --parameter-derivative exact");
+  CHECK(bad.code != 0);
+  CHECK(bad.output.find("--parameter-derivative") != std::string::npos);
 }
 
 TEST_CASE("grad cli: the misfit to a recorded run folder", "[gradients][cli]") {

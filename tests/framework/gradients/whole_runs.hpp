@@ -68,15 +68,19 @@ inline double run_loss(const std::string& file, const std::vector<std::string>& 
   return l;
 }
 
+/// `plugin_derivatives` false: every force parameter's derivative by central differences,
+/// even where its plugin gives it.
 inline GradientReport gradient(const std::string& file, const std::vector<std::string>& overrides,
                                const std::string& loss_spec, const std::vector<std::string>& wrt,
-                               const std::string& integrator, uint64_t segment = 0) {
+                               const std::string& integrator, uint64_t segment = 0,
+                               bool plugin_derivatives = true) {
   const Scene scene = load_scene(file, overrides);
   PluginLoader loader(plugin_search_dirs(scene.plugin_path));
   GradientOptions opt;
   opt.run.integrator = integrator;
   opt.run.threads = 1;
   opt.segment = segment;
+  opt.plugin_parameter_derivatives = plugin_derivatives;
   return scene_gradient(
       scene, loader, wrt, [&](const LossContext& c) { return parse_loss(loss_spec, c); }, opt);
 }
