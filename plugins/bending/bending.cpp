@@ -204,34 +204,52 @@ void Bending::constraints(const double* x, const uint64_t* which, std::size_t n,
 // df_i/dp_j = k/2 Σ D_i D_j H over the (a, b) pairs.
 void Bending::add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx,
                                     ForceOut*) const {
+  const double* x = s.x.data();
+  const double* wd = w.data();
+  double* out = gx.data();
   for (std::size_t e = 0; e < idx_.size() / 3; ++e) {
     const uint32_t p0 = idx_[3 * e], p1 = idx_[3 * e + 1], p2 = idx_[3 * e + 2];
-    const Vec2 a = s.x.col(p1) - s.x.col(p0);
-    const Vec2 b = s.x.col(p2) - s.x.col(p1);
-    const double la = a.norm(), lb = b.norm();
+    const double ax = x[2 * p1] - x[2 * p0], ay = x[2 * p1 + 1] - x[2 * p0 + 1];
+    const double bx = x[2 * p2] - x[2 * p1], by = x[2 * p2 + 1] - x[2 * p1 + 1];
+    const double la = std::sqrt(ax * ax + ay * ay), lb = std::sqrt(bx * bx + by * by);
     if (!(la > kMinLength && lb > kMinLength)) continue;
+    const double ia = 1.0 / la, ib = 1.0 / lb;
     const double c = flat_ ? 1.0 : c0_[e], sn = flat_ ? 0.0 : s0_[e];
-    const Vec2 ah = a / la, bh = b / lb;
+    const double ahx = ax * ia, ahy = ay * ia, bhx = bx * ib, bhy = by * ib;
     // M = [[c, sn], [-sn, c]]: m = M b̂, n = Mᵀ â
-    const Vec2 m(c * bh.x() + sn * bh.y(), -sn * bh.x() + c * bh.y());
-    const Vec2 n(c * ah.x() - sn * ah.y(), sn * ah.x() + c * ah.y());
-    const Vec2 wa = w.col(p1) - w.col(p0), wb = w.col(p2) - w.col(p1);
+    const double mx = c * bhx + sn * bhy, my = -sn * bhx + c * bhy;
+    const double nx = c * ahx - sn * ahy, ny = sn * ahx + c * ahy;
+    const double wax = wd[2 * p1] - wd[2 * p0], way = wd[2 * p1 + 1] - wd[2 * p0 + 1];
+    const double wbx = wd[2 * p2] - wd[2 * p1], wby = wd[2 * p2 + 1] - wd[2 * p1 + 1];
     // Π_a u = u - â (â·u), likewise Π_b
-    const Vec2 pawa = wa - ah * ah.dot(wa), pbwb = wb - bh * bh.dot(wb);
-    const Vec2 pam = m - ah * ah.dot(m), pbn = n - bh * bh.dot(n);
-    // Haa wa = -(Π_a m (â·wa) + â (m·Π_a wa) + (â·m) Π_a wa) / a², Hbb wb likewise;
+    const double aw = ahx * wax + ahy * way, bw = bhx * wbx + bhy * wby;
+    const double am = ahx * mx + ahy * my, bn = bhx * nx + bhy * ny;
+    const double pax = wax - ahx * aw, pay = way - ahy * aw;  // Π_a wa
+    const double pbx = wbx - bhx * bw, pby = wby - bhy * bw;  // Π_b wb
+    const double qax = mx - ahx * am, qay = my - ahy * am;    // Π_a m
+    const double qbx = nx - bhx * bn, qby = ny - bhy * bn;    // Π_b n
+    // Haa wa = -(Π_a m (â·wa) + â (m·Π_a wa) + (â·m) Π_a wa) / a², Hbb wb likewise
+    const double mpa = mx * pax + my * pay, npb = nx * pbx + ny * pby;
+    const double ia2 = ia * ia, ib2 = ib * ib, iab = ia * ib;
+    const double haax = -(qax * aw + ahx * mpa + am * pax) * ia2;
+    const double haay = -(qay * aw + ahy * mpa + am * pay) * ia2;
+    const double hbbx = -(qbx * bw + bhx * npb + bn * pbx) * ib2;
+    const double hbby = -(qby * bw + bhy * npb + bn * pby) * ib2;
     // Hab wb = Π_a M Π_b wb / (a b), Hba wa = Π_b Mᵀ Π_a wa / (a b)
-    const Vec2 haa = -(pam * ah.dot(wa) + ah * m.dot(pawa) + ah.dot(m) * pawa) / (la * la);
-    const Vec2 hbb = -(pbn * bh.dot(wb) + bh * n.dot(pbwb) + bh.dot(n) * pbwb) / (lb * lb);
-    const Vec2 mp(c * pbwb.x() + sn * pbwb.y(), -sn * pbwb.x() + c * pbwb.y());  // M Π_b wb
-    const Vec2 hab = (mp - ah * ah.dot(mp)) / (la * lb);
-    const Vec2 mt(c * pawa.x() - sn * pawa.y(), sn * pawa.x() + c * pawa.y());  // Mᵀ Π_a wa
-    const Vec2 hba = (mt - bh * bh.dot(mt)) / (la * lb);
+    const double ux = c * pbx + sn * pby, uy = -sn * pbx + c * pby;  // M Π_b wb
+    const double tx = c * pax - sn * pay, ty = sn * pax + c * pay;   // Mᵀ Π_a wa
+    const double au = ahx * ux + ahy * uy, bt = bhx * tx + bhy * ty;
+    const double habx = (ux - ahx * au) * iab, haby = (uy - ahy * au) * iab;
+    const double hbax = (tx - bhx * bt) * iab, hbay = (ty - bhy * bt) * iab;
     const double h = 0.5 * k_of(e);
-    const Vec2 ga = h * (haa + hab), gb = h * (hba + hbb);
-    gx.col(p0) -= ga;
-    gx.col(p1) += ga - gb;
-    gx.col(p2) += gb;
+    const double gax = h * (haax + habx), gay = h * (haay + haby);
+    const double gbx = h * (hbax + hbbx), gby = h * (hbay + hbby);
+    out[2 * p0] -= gax;
+    out[2 * p0 + 1] -= gay;
+    out[2 * p1] += gax - gbx;
+    out[2 * p1 + 1] += gay - gby;
+    out[2 * p2] += gbx;
+    out[2 * p2 + 1] += gby;
   }
 }
 
