@@ -13,6 +13,22 @@ namespace {
 constexpr double kMinDist2 = 1e-200;
 }  // namespace
 
+template <class F>
+void Gravity::for_each_pair(const StateView& s, F&& f) const {
+  for (std::size_t a = 0; a < particles_.size(); ++a) {
+    const uint32_t k = particles_[a];
+    if (!(s.inv_mass[k] > 0.0)) continue;
+    for (std::size_t b = a + 1; b < particles_.size(); ++b) {
+      const uint32_t l = particles_[b];
+      if (!(s.inv_mass[l] > 0.0)) continue;
+      const Vec2 r = s.x.col(k) - s.x.col(l);
+      const double rs2 = r.squaredNorm() + eps2_;
+      if (!(rs2 > kMinDist2)) continue;
+      f(k, l, r, rs2);
+    }
+  }
+}
+
 PluginInfo Gravity::info() {
   PluginInfo i;
   i.name = "gravity";
@@ -77,21 +93,11 @@ void Gravity::add_force(const StateView& s, ForceOut& f) const {
 
 void Gravity::add_pairwise(const StateView& s, ForceOut& f, double G) const {
   const double h = 0.5 * (alpha_ - 2.0);
-  for (std::size_t a = 0; a < particles_.size(); ++a) {
-    const uint32_t k = particles_[a];
-    if (!(s.inv_mass[k] > 0.0)) continue;
-    const double mk = 1.0 / s.inv_mass[k];
-    for (std::size_t b = a + 1; b < particles_.size(); ++b) {
-      const uint32_t l = particles_[b];
-      if (!(s.inv_mass[l] > 0.0)) continue;
-      const Vec2 r = s.x.col(k) - s.x.col(l);
-      const double rs2 = r.squaredNorm() + eps2_;
-      if (!(rs2 > kMinDist2)) continue;
-      const Vec2 fk = -G * mk / s.inv_mass[l] * std::pow(rs2, h) * r;
-      f.col(k) += fk;
-      f.col(l) -= fk;
-    }
-  }
+  for_each_pair(s, [&](uint32_t k, uint32_t l, const Vec2& r, double rs2) {
+    const Vec2 fk = -G * (1.0 / s.inv_mass[k]) / s.inv_mass[l] * std::pow(rs2, h) * r;
+    f.col(k) += fk;
+    f.col(l) -= fk;
+  });
 }
 
 void Gravity::add_dforce_dparam(const StateView& s, std::string_view param, int component,
@@ -117,64 +123,38 @@ double Gravity::energy(const StateView& s) const {
     }
     return e;
   }
-  for (std::size_t a = 0; a < particles_.size(); ++a) {
-    const uint32_t k = particles_[a];
-    if (!(s.inv_mass[k] > 0.0)) continue;
-    for (std::size_t b = a + 1; b < particles_.size(); ++b) {
-      const uint32_t l = particles_[b];
-      if (!(s.inv_mass[l] > 0.0)) continue;
-      const double rs2 = (s.x.col(k) - s.x.col(l)).squaredNorm() + eps2_;
-      if (!(rs2 > kMinDist2)) continue;
-      const double phi = alpha_ == 0.0 ? 0.5 * std::log(rs2) : std::pow(rs2, 0.5 * alpha_) / alpha_;
-      e += G_ / (s.inv_mass[k] * s.inv_mass[l]) * phi;
-    }
-  }
+  for_each_pair(s, [&](uint32_t k, uint32_t l, const Vec2&, double rs2) {
+    const double phi = alpha_ == 0.0 ? 0.5 * std::log(rs2) : std::pow(rs2, 0.5 * alpha_) / alpha_;
+    e += G_ / (s.inv_mass[k] * s.inv_mass[l]) * phi;
+  });
   return e;
 }
 
 void Gravity::add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx,
                                     ForceOut*) const {
   if (!pairwise_) return;
-  for (std::size_t a = 0; a < particles_.size(); ++a) {
-    const uint32_t k = particles_[a];
-    if (!(s.inv_mass[k] > 0.0)) continue;
-    for (std::size_t b = a + 1; b < particles_.size(); ++b) {
-      const uint32_t l = particles_[b];
-      if (!(s.inv_mass[l] > 0.0)) continue;
-      const Vec2 r = s.x.col(k) - s.x.col(l);
-      const double rs2 = r.squaredNorm() + eps2_;
-      if (!(rs2 > kMinDist2)) continue;
-      const double gmm = G_ / (s.inv_mass[k] * s.inv_mass[l]);
-      const double p2 = std::pow(rs2, 0.5 * (alpha_ - 2.0));
-      const Vec2 d = w.col(k) - w.col(l);
-      // K d with K = gmm [p2 I + (alpha - 2) p2 / rs2 r rᵀ]
-      const Vec2 kd = gmm * (p2 * d + (alpha_ - 2.0) * p2 / rs2 * r.dot(d) * r);
-      gx.col(k) -= kd;
-      gx.col(l) += kd;
-    }
-  }
+  for_each_pair(s, [&](uint32_t k, uint32_t l, const Vec2& r, double rs2) {
+    const double gmm = G_ / (s.inv_mass[k] * s.inv_mass[l]);
+    const double p2 = std::pow(rs2, 0.5 * (alpha_ - 2.0));
+    const Vec2 d = w.col(k) - w.col(l);
+    // K d with K = gmm [p2 I + (alpha - 2) p2 / rs2 r rᵀ]
+    const Vec2 kd = gmm * (p2 * d + (alpha_ - 2.0) * p2 / rs2 * r.dot(d) * r);
+    gx.col(k) -= kd;
+    gx.col(l) += kd;
+  });
 }
 
 void Gravity::add_dfdx(const StateView& s, Triplets& J) const {
   if (!pairwise_) return;
-  for (std::size_t a = 0; a < particles_.size(); ++a) {
-    const uint32_t k = particles_[a];
-    if (!(s.inv_mass[k] > 0.0)) continue;
-    for (std::size_t b = a + 1; b < particles_.size(); ++b) {
-      const uint32_t l = particles_[b];
-      if (!(s.inv_mass[l] > 0.0)) continue;
-      const Vec2 r = s.x.col(k) - s.x.col(l);
-      const double rs2 = r.squaredNorm() + eps2_;
-      if (!(rs2 > kMinDist2)) continue;
-      const double gmm = G_ / (s.inv_mass[k] * s.inv_mass[l]);
-      const double p2 = std::pow(rs2, 0.5 * (alpha_ - 2.0));
-      const Mat2 K = gmm * (p2 * Mat2::Identity() + (alpha_ - 2.0) * p2 / rs2 * r * r.transpose());
-      J.add_block(k, k, -K);
-      J.add_block(l, l, -K);
-      J.add_block(k, l, K);
-      J.add_block(l, k, K);
-    }
-  }
+  for_each_pair(s, [&](uint32_t k, uint32_t l, const Vec2& r, double rs2) {
+    const double gmm = G_ / (s.inv_mass[k] * s.inv_mass[l]);
+    const double p2 = std::pow(rs2, 0.5 * (alpha_ - 2.0));
+    const Mat2 K = gmm * (p2 * Mat2::Identity() + (alpha_ - 2.0) * p2 / rs2 * r * r.transpose());
+    J.add_block(k, k, -K);
+    J.add_block(l, l, -K);
+    J.add_block(k, l, K);
+    J.add_block(l, k, K);
+  });
 }
 
 }  // namespace pinsim::plugins

@@ -33,6 +33,11 @@ class Gravity {
   void add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut*) const;
 
  private:
+  /// Calls f(k, l, r, rs2) for every pair k < l (in list order) of listed particles with
+  /// inverse mass > 0 whose softened squared distance rs2 = |r|² + ε² (r = p_k - p_l) is
+  /// above the degenerate limit: the one pair loop of the pairwise mode.
+  template <class F>
+  void for_each_pair(const StateView& s, F&& f) const;
   /// pairwise: f += the attraction with coupling constant G.
   void add_pairwise(const StateView& s, ForceOut& f, double G) const;
 
