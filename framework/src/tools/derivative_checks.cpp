@@ -8,6 +8,16 @@
 
 namespace pinsim::plugin_check {
 
+namespace {
+
+/// The step-halving verdict's words: "; error e1 at h, e2 at h/2" and whether it converged.
+std::string halving_text(double e1, double e2, bool ok) {
+  return "; error " + num(e1, 3) + " at h, " + num(e2, 3) + " at h/2" +
+         (ok ? "" : " (does not converge)");
+}
+
+}  // namespace
+
 CheckResult Checker::gradient_check() {
   CheckResult r{"gradient",        "f = -dE/dx by central differences, step halving",
                 CheckStatus::Pass, 0.0,
@@ -39,8 +49,7 @@ CheckResult Checker::gradient_check() {
     const bool ok = converged(e1, e2);
     keep_worst(r, e2, ok,
                "state " + std::to_string(trial) + ", " + dof_name(j) + ": f = " + num(f[j], 3) +
-                   ", -dE/dx = " + num(g2[j], 3) + "; error " + num(e1, 3) + " at h, " +
-                   num(e2, 3) + " at h/2" + (ok ? "" : " (does not converge)"));
+                   ", -dE/dx = " + num(g2[j], 3) + halving_text(e1, e2, ok));
   }
   return r;
 }
@@ -84,8 +93,7 @@ CheckResult Checker::jacobian_check(int which) {
     keep_worst(r, e2, ok,
                "state " + std::to_string(trial) + ", d(" + dof_name(row) + ")/d(" + dof_name(col) +
                    "): analytic " + num(k(row, col), 3) + ", difference " + num(g2(row, col), 3) +
-                   "; error " + num(e1, 3) + " at h, " + num(e2, 3) + " at h/2" +
-                   (ok ? "" : " (does not converge)"));
+                   halving_text(e1, e2, ok));
   }
   return r;
 }
@@ -135,9 +143,7 @@ CheckResult Checker::constraint_check(int which) {
       const double e1 = constraint_gradient_error(p, xa, kStep, d1);
       const double e2 = constraint_gradient_error(p, xa, kStep / 2, detail);
       const bool ok = converged(e1, e2);
-      keep_worst(r, e2, ok,
-                 state + detail + "; error " + num(e1, 3) + " at h, " + num(e2, 3) + " at h/2" +
-                     (ok ? "" : " (does not converge)"));
+      keep_worst(r, e2, ok, state + detail + halving_text(e1, e2, ok));
     }
   }
   return r;
@@ -202,8 +208,7 @@ CheckResult Checker::dparam_check() {
         keep_worst(r, e2, ok,
                    "state " + std::to_string(trial) + ", d(" + dof_name(j) + ")/d " + what +
                        " at " + what + " = " + num(theta, 6) + ": plugin " + num(a[j], 3) +
-                       ", difference " + num(g2[j], 3) + "; error " + num(e1, 3) + " at h, " +
-                       num(e2, 3) + " at h/2" + (ok ? "" : " (does not converge)"));
+                       ", difference " + num(g2[j], 3) + halving_text(e1, e2, ok));
       }
     }
   }
