@@ -86,15 +86,10 @@ void DampedSpring::add_jacobians(const StateView& s, Triplets* dx, Triplets* dv)
       const uint32_t k = particle(e, 0), l = particle(e, 1);
       const double ex = nx[q], ey = ny[q];
       if (dx != nullptr) {
-        const double ux = v[2 * k] - v[2 * l], uy = v[2 * k + 1] - v[2 * l + 1];
-        // B = (I - n nᵀ) / R, symmetric
-        const double bxx = (1.0 - ex * ex) * inv[q], bxy = -ex * ey * inv[q],
-                     byy = (1.0 - ey * ey) * inv[q];
-        const double sc = ks * (len[q] - rest_[e]) + kd * (ex * ux + ey * uy);
-        const double wx = ks * ex + kd * (bxx * ux + bxy * uy);
-        const double wy = ks * ey + kd * (bxy * ux + byy * uy);
-        const double mxx = -ex * wx - sc * bxx, mxy = -ex * wy - sc * bxy;
-        const double myx = -ey * wx - sc * bxy, myy = -ey * wy - sc * byy;
+        const Terms t = terms(ex, ey, inv[q], len[q] - rest_[e], v[2 * k] - v[2 * l],
+                              v[2 * k + 1] - v[2 * l + 1], ks, kd);
+        const double mxx = -ex * t.wx - t.sc * t.bxx, mxy = -ex * t.wy - t.sc * t.bxy;
+        const double myx = -ey * t.wx - t.sc * t.bxy, myy = -ey * t.wy - t.sc * t.byy;
         dx->add_block(k, k, mxx, myx, mxy, myy);
         dx->add_block(k, l, -mxx, -myx, -mxy, -myy);
         dx->add_block(l, k, -mxx, -myx, -mxy, -myy);
@@ -126,15 +121,12 @@ void DampedSpring::add_jacobian_products(const StateView& s, const Field& wt, Fo
     const double r = std::sqrt(rx * rx + ry * ry);
     const double i = r > kMinLength ? 1.0 / r : 0.0;  // zero length: every block is zero
     const double ex = rx * i, ey = ry * i;
-    const double ux = v[2 * k] - v[2 * l], uy = v[2 * k + 1] - v[2 * l + 1];
     const double dx = w[2 * k] - w[2 * l], dy = w[2 * k + 1] - w[2 * l + 1];
-    const double bxx = (1.0 - ex * ex) * i, bxy = -ex * ey * i, byy = (1.0 - ey * ey) * i;
-    const double sc = ks * (r - rest_length(e)) + kd * (ex * ux + ey * uy);
-    const double wx = ks * ex + kd * (bxx * ux + bxy * uy);
-    const double wy = ks * ey + kd * (bxy * ux + byy * uy);
+    const Terms t = terms(ex, ey, i, r - rest_length(e), v[2 * k] - v[2 * l],
+                          v[2 * k + 1] - v[2 * l + 1], ks, kd);
     const double nd = ex * dx + ey * dy;
-    const double px = -wx * nd - sc * (bxx * dx + bxy * dy);
-    const double py = -wy * nd - sc * (bxy * dx + byy * dy);
+    const double px = -t.wx * nd - t.sc * (t.bxx * dx + t.bxy * dy);
+    const double py = -t.wy * nd - t.sc * (t.bxy * dx + t.byy * dy);
     ox[2 * k] += px;
     ox[2 * k + 1] += py;
     ox[2 * l] -= px;

@@ -48,6 +48,26 @@ class DampedSpring : public ConstraintSpring<DampedSpring, 2> {
   static constexpr double kMinLength = 1e-100;
 
  private:
+  /// One spring's B = (I - n nᵀ)/R (bxx, bxy, byy), s = ks (R - L) + kd Ṙ and
+  /// w = ks n + kd B u: what its df/dx block M = -n wᵀ - s B is made of (add_jacobians and
+  /// add_jacobian_products).
+  struct Terms {
+    double bxx, bxy, byy, sc, wx, wy;
+  };
+  /// Terms at unit direction n = (ex, ey), 1/R = inv, stretch R - L and relative velocity
+  /// u = v_k - v_l = (ux, uy).
+  static Terms terms(double ex, double ey, double inv, double stretch, double ux, double uy,
+                     double ks, double kd) {
+    Terms t;
+    t.bxx = (1.0 - ex * ex) * inv;
+    t.bxy = -ex * ey * inv;
+    t.byy = (1.0 - ey * ey) * inv;
+    t.sc = ks * stretch + kd * (ex * ux + ey * uy);
+    t.wx = ks * ex + kd * (t.bxx * ux + t.bxy * uy);
+    t.wy = ks * ey + kd * (t.bxy * ux + t.byy * uy);
+    return t;
+  }
+
   std::vector<double> rest_;
 };
 
