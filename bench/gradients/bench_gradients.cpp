@@ -120,8 +120,12 @@ int main(int argc, char** argv) {
       const double f = median(fwd), b = median(bwd);
       const double np = static_cast<double>(scene.initial_state().size());
       // a state: x and v (4 doubles a particle); a step record (StepTape): its start state,
-      // the drift's x and v, and velocity Verlet's x1, vc, vp
-      const double state_b = 4.0 * 8.0 * np, record_b = 9.0 * 2.0 * 8.0 * np;
+      // the drift's x and v, and velocity Verlet's x1, vc, vp; implicit Euler's also its
+      // system's A^T (BlockSystem: first and diag_block 8 bytes a particle; col 4, tblock 8
+      // and the values 32 a block)
+      const double blocks = static_cast<double>(r.system_blocks);
+      const double state_b = 4.0 * 8.0 * np,
+                   record_b = 9.0 * 2.0 * 8.0 * np + (blocks > 0 ? 16.0 * np + 44.0 * blocks : 0.0);
       const double peak_mb = (static_cast<double>(r.checkpoints) * state_b +
                               static_cast<double>(r.peak_states - r.checkpoints) * record_b) /
                              1048576.0;

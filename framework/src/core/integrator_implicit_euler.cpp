@@ -12,7 +12,7 @@
 #include <utility>
 #include <vector>
 
-#include "core/block_sparse_matrix.hpp"
+#include "core/block_krylov.hpp"
 #include "core/integrators.hpp"
 #include "core/simulation.hpp"
 #include "core/step_context.hpp"
@@ -31,19 +31,19 @@ namespace {
 /// nonsymmetric term -kd J^T (H v)^T when the spring turns; conjugate gradients on such a system
 /// would converge to something else than A^-1 b (Eigen's ConjugateGradient with Lower|Upper
 /// multiplies by A^T). Each step therefore checks A's symmetry up to rounding (every entry against
-/// its transpose entry, whose block is found once with the pattern; see is_symmetric()) and solves
-/// a symmetric A by conjugate gradients, a nonsymmetric one by BiCGSTAB, both with a Jacobi
-/// (diagonal) preconditioner to a relative residual of 1e-12, started from the last step's dv (warm
-/// start: a smooth motion changes dv little from step to step) when that guess's residual is below
-/// |b|, else from 0. Both are written here (cg(), bicgstab(): Eigen's steps and stopping rules)
-/// over A stored as 2x2 blocks by rows (BlockSparseMatrix2: products gather, no scattered writes),
-/// with the vector updates fused into the products and a few passes per iteration, and the warm
-/// start's residual as their first. A is assembled in a block pattern built once (rebuilt only if
-/// the forces' entries move): no sorting or allocation per step; if the iterative solve fails (an
-/// indefinite K from compressed springs can make CG fail) a sparse LU solves it instead. If that
-/// fails too (a singular system, or a residual above 1e-8 of |b|), the step throws NumericError
-/// (solver_failure) rather than use an unconverged velocity. stats() reports the solves for
-/// summary.json.
+/// its transpose entry, whose block is found once with the pattern; see BlockSystem::is_symmetric)
+/// and solves a symmetric A by conjugate gradients, a nonsymmetric one by BiCGSTAB, both with a
+/// Jacobi (diagonal) preconditioner to a relative residual of 1e-12, started from the last step's
+/// dv (warm start: a smooth motion changes dv little from step to step) when that guess's residual
+/// is below |b|, else from 0. Both are written in core/block_krylov.cpp (Eigen's steps and stopping
+/// rules) over A stored as 2x2 blocks by rows (BlockSparseMatrix2: products gather, no scattered
+/// writes), with the vector updates fused into the products and a few passes per iteration, and the
+/// warm start's residual as their first. A is assembled in a block pattern built once (rebuilt only
+/// if the forces' entries move): no sorting or allocation per step; if the iterative solve fails
+/// (an indefinite K from compressed springs can make CG fail) a sparse LU solves it instead. If
+/// that fails too (a singular system, or a residual above 1e-8 of |b|), the step throws
+/// NumericError (solver_failure) rather than use an unconverged velocity. stats() reports the
+/// solves for summary.json.
 ///
 /// A converged solve can still be meaningless. CG stops at |A dv - b| <= 1e-12 |b|, and a
 /// very stiff force makes |b| huge (h^2 K v) while the soft directions of A keep eigenvalues
@@ -59,7 +59,7 @@ namespace {
 /// the bound is about 1e-12 (h w)^2 |dv|_M (plus rounding, 1e-16 (h w)^2 |dv|_M), under
 /// 1e-3 |dv|_M up to (h w)^2 ~ 1e9. (|v_{n+1}| alone would not do: a very stiff step sets
 /// v_{n+1} ~ 0 by cancellation, v_n + dv.)
-class ImplicitEuler : public Integrator {
+class ImplicitEuler : public Integrator, public LinearSystemStep {
  public:
   explicit ImplicitEuler(const ImplicitEulerOptions& o) : options_(o) {}
 
@@ -70,7 +70,7 @@ class ImplicitEuler : public Integrator {
     const Eigen::Map<const Eigen::VectorXd> v0(s.v.data(), n);
 
     if (m_.size() != n) m_.resize(n);
-    np_ = n / 2;
+    krylov_.resize(n / 2);
     for_rows([&](int64_t lo, int64_t hi) {
       for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
         const double w = s.inv_mass[i / 2];
@@ -81,7 +81,7 @@ class ImplicitEuler : public Integrator {
     // A, and K v_n straight from the entries; b = h (f_n + h K v_n), pinned rows zeroed.
     if (kv_.size() != n) kv_.resize(n);
     assemble(ctx, s, n, h, v0);
-    for (Eigen::VectorXd* x : {&b_, &r_, &r0_, &p_, &v_, &y_, &z_, &s_, &t_, &inv_diag_})
+    for (Eigen::VectorXd* x : {&b_, &r_})
       if (x->size() != n) x->resize(n);
     const double* f = f_.data();
     const double bb = sum_rows<1>([&](int64_t lo, int64_t hi, double* sum) {
@@ -91,7 +91,9 @@ class ImplicitEuler : public Integrator {
       }
     })[0];
     const Eigen::VectorXd& b = b_;
-    const bool symmetric = is_symmetric();
+    const bool symmetric = sys_.is_symmetric(root_diag_);
+    solved_symmetric_ = symmetric;
+    solved_ = false;
     const Eigen::Index max_iterations = options_.cg_max_iterations > 0
                                             ? options_.cg_max_iterations
                                             : std::max<Eigen::Index>(100, 4 * n);
@@ -107,13 +109,13 @@ class ImplicitEuler : public Integrator {
       dv_.setZero();
       r_ = b;
     }
-    Solve out;
+    BlockKrylov::Solve out;
     const char* method = symmetric ? "conjugate gradients" : "BiCGSTAB";
     if (symmetric) {
-      out = cg(bb, max_iterations);
+      out = krylov_.cg(sys_, bb, dv_, r_, max_iterations);
     } else {
       ++bicgstab_solves_;
-      out = bicgstab(bb, max_iterations);
+      out = krylov_.bicgstab(sys_, b_, bb, dv_, r_, max_iterations);
     }
     Eigen::Index iterations = out.iterations;
     double residual = out.residual;
@@ -128,7 +130,7 @@ class ImplicitEuler : public Integrator {
           "with sparse LU",
           method, krylov_residual, iterations);
       ++lu_fallbacks_;
-      const Eigen::SparseMatrix<double> a = A_.to_eigen();
+      const Eigen::SparseMatrix<double> a = sys_.a.to_eigen();
       Eigen::SparseLU<Eigen::SparseMatrix<double>> lu;
       lu.compute(a);
       const bool factored = lu.info() == Eigen::Success;
@@ -146,6 +148,7 @@ class ImplicitEuler : public Integrator {
                         stiffness_text(ctx, s, h)),
             ctx.step(), s.t, most_demanding(b, m), blame(ctx, s, h));
     }
+    solved_ = true;
     check_accuracy(ctx, s, b, dv, m, h);
     worst_residual_ = std::max(worst_residual_, residual);
     Eigen::Map<Eigen::VectorXd>(s.v.data(), n) += dv;
@@ -154,248 +157,22 @@ class ImplicitEuler : public Integrator {
 
   /// r = b_ - A x; returns |r|^2.
   double residual_of(const Eigen::VectorXd& x, Eigen::VectorXd& r) {
-    const double* b = b_.data();
-    double* out = r.data();
-    return sum_rows<1>([&](int64_t lo, int64_t hi, double* sum) {
-      A_.multiply(x.data(), lo, hi, [&](int64_t i, double y0, double y1) {
-        out[2 * i] = b[2 * i] - y0;
-        out[2 * i + 1] = b[2 * i + 1] - y1;
-        sum[0] += out[2 * i] * out[2 * i];
-        sum[1] += out[2 * i + 1] * out[2 * i + 1];
-      });
-    })[0];
+    return krylov_.residual_of(sys_, b_, x, r);
   }
 
-  /// out = A in; returns w . out.
-  double product(const double* in, double* out, const double* w) {
-    return sum_rows<1>([&](int64_t lo, int64_t hi, double* sum) {
-      A_.multiply(in, lo, hi, [&](int64_t i, double y0, double y1) {
-        out[2 * i] = y0;
-        out[2 * i + 1] = y1;
-        sum[0] += w[2 * i] * y0;
-        sum[1] += w[2 * i + 1] * y1;
-      });
-    })[0];
-  }
-
-  /// Particle rows per chunk of the solver's loops. The chunks depend on the particle count
-  /// alone, and every sum over dofs is summed per chunk (even and odd dofs apart, then the
-  /// two) and then over the chunks in order: the same bits for any --threads (up to 1024
-  /// particles, one chunk: the serial sums).
-  static constexpr std::size_t kRows = 1024;
-
-  /// Calls body(lo, hi) for each chunk of particle rows [lo, hi) of the np_ rows, on threads
-  /// when there are enough (pinsim/parallel.hpp, Schedule::Even).
+  static constexpr std::size_t kRows = BlockKrylov::kRows;
   template <class Body>
   void for_rows(Body&& body) const {
-    for_chunks(
-        static_cast<std::size_t>(np_), kRows,
-        [&](std::size_t, std::size_t lo, std::size_t hi) {
-          body(static_cast<int64_t>(lo), static_cast<int64_t>(hi));
-        },
-        Schedule::Even);
+    krylov_.for_rows(body);
   }
-
-  /// K sums over dofs, as for_rows: body(lo, hi, sum) adds dof i's term of sum k into
-  /// sum[2k + (i & 1)] (or all into sum[2k]); returns per k the chunks' sum[2k] + sum[2k + 1]
-  /// added in chunk order.
   template <std::size_t K, class Body>
   std::array<double, K> sum_rows(Body&& body) {
-    const std::size_t chunks = chunk_count(static_cast<std::size_t>(np_), kRows);
-    if (partial_.size() < 2 * K * chunks) partial_.resize(2 * K * chunks);
-    double* part = partial_.data();
-    for_chunks(
-        static_cast<std::size_t>(np_), kRows,
-        [&](std::size_t c, std::size_t lo, std::size_t hi) {
-          double sum[2 * K] = {};
-          body(static_cast<int64_t>(lo), static_cast<int64_t>(hi), sum);
-          std::copy(sum, sum + 2 * K, part + 2 * K * c);
-        },
-        Schedule::Even);
-    std::array<double, K> out{};
-    for (std::size_t c = 0; c < chunks; ++c)
-      for (std::size_t k = 0; k < K; ++k)
-        out[k] += part[2 * K * c + 2 * k] + part[2 * K * c + 2 * k + 1];
-    return out;
-  }
-
-  struct Solve {
-    Eigen::Index iterations = 0;
-    double residual = 0.0;  ///< |r| / |b| of the iteration's own residual r
-    bool converged = false;
-  };
-
-  /// The Jacobi preconditioner: 1 / a_ii (1 where a_ii = 0), as Eigen's
-  /// DiagonalPreconditioner.
-  void jacobi() {
-    for_rows([&](int64_t lo, int64_t hi) {
-      for (int64_t i = lo; i < hi; ++i) {
-        const double* d = A_.value.data() + 4 * diag_block_[static_cast<std::size_t>(i)];
-        inv_diag_[2 * i] = d[0] != 0.0 ? 1.0 / d[0] : 1.0;
-        inv_diag_[2 * i + 1] = d[3] != 0.0 ? 1.0 / d[3] : 1.0;
-      }
-    });
-  }
-
-  /// Preconditioned conjugate gradients on A dv_ = b_ from dv_, whose residual is r_ (Eigen's
-  /// ConjugateGradient, same steps and stopping rule: |r|^2 < max(1e-24 |b|^2, min normal)),
-  /// with A's product a gather by rows and the vector updates fused into three passes per
-  /// iteration. Sums over dofs add even and odd dofs apart, then the two.
-  Solve cg(double bb, Eigen::Index max_iterations) {
-    Solve out;
-    if (bb == 0.0) {
-      dv_.setZero();
-      out.converged = true;
-      return out;
-    }
-    jacobi();
-    double* x = dv_.data();
-    double* r = r_.data();
-    double* p = p_.data();
-    double* q = v_.data();  // A p
-    double* z = z_.data();
-    const double* d = inv_diag_.data();
-    const double threshold = std::max(1e-24 * bb, std::numeric_limits<double>::min());
-    const auto first = sum_rows<2>([&](int64_t lo, int64_t hi, double* sum) {
-      for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
-        p[i] = d[i] * r[i];
-        sum[i & 1] += r[i] * r[i];
-        sum[2 + (i & 1)] += r[i] * p[i];
-      }
-    });
-    double r2 = first[0], abs_new = first[1];
-    Eigen::Index it = 0;
-    while (!(r2 < threshold) && it < max_iterations && r2 == r2) {
-      const double alpha = abs_new / product(p, q, p);
-      const auto next = sum_rows<2>([&](int64_t lo, int64_t hi, double* sum) {
-        for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
-          x[i] += alpha * p[i];
-          r[i] -= alpha * q[i];
-          z[i] = d[i] * r[i];
-          sum[i & 1] += r[i] * r[i];
-          sum[2 + (i & 1)] += r[i] * z[i];
-        }
-      });
-      ++it;
-      r2 = next[0];
-      if (r2 < threshold) break;
-      const double abs_old = abs_new;
-      abs_new = next[1];
-      const double beta = abs_new / abs_old;
-      for_rows([&](int64_t lo, int64_t hi) {
-        for (int64_t i = 2 * lo; i < 2 * hi; ++i) p[i] = z[i] + beta * p[i];
-      });
-    }
-    out.iterations = it;
-    out.residual = std::sqrt(r2 / bb);
-    out.converged = out.residual <= 1e-12;
-    return out;
-  }
-
-  /// Right-preconditioned BiCGSTAB on A dv_ = b_ from dv_, whose residual is r_ (Eigen's
-  /// BiCGSTAB: same steps, restart when r drifts orthogonal to r0, stopping rule
-  /// |r|^2 <= 1e-24 |b|^2; and, as van der Vorst's, it stops halfway through an iteration
-  /// when the intermediate residual s already meets the rule). The vector updates are fused
-  /// into the products with A and three passes per iteration.
-  Solve bicgstab(double bb, Eigen::Index max_iterations) {
-    Solve out;
-    if (bb == 0.0) {
-      dv_.setZero();
-      out.converged = true;
-      return out;
-    }
-    jacobi();
-    double* x = dv_.data();
-    double* r = r_.data();
-    double* r0 = r0_.data();
-    double* p = p_.data();
-    double* v = v_.data();
-    double* y = y_.data();
-    double* z = z_.data();
-    double* sv = s_.data();
-    double* t = t_.data();
-    const double* d = inv_diag_.data();
-    const double tol2 = 1e-24 * bb;
-    const double eps2 =
-        std::numeric_limits<double>::epsilon() * std::numeric_limits<double>::epsilon();
-    double r2 = sum_rows<1>([&](int64_t lo, int64_t hi, double* sum) {
-      for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
-        r0[i] = r[i];
-        p[i] = v[i] = 0.0;
-        sum[i & 1] += r[i] * r[i];
-      }
-    })[0];
-    double r0_sqnorm = r2, rho_next = r2;
-    double rho = 1.0, alpha = 1.0, w = 1.0;
-    Eigen::Index it = 0;
-    while (r2 > tol2 && it < max_iterations) {
-      const double rho_old = rho;
-      rho = rho_next;
-      if (std::abs(rho) < eps2 * r0_sqnorm) {  // r nearly orthogonal to r0: restart
-        r2 = residual_of(dv_, r_);
-        for_rows([&](int64_t lo, int64_t hi) {
-          for (int64_t i = 2 * lo; i < 2 * hi; ++i) r0[i] = r[i];
-        });
-        rho = r0_sqnorm = r2;
-      }
-      const double beta = (rho / rho_old) * (alpha / w);
-      for_rows([&](int64_t lo, int64_t hi) {
-        for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
-          p[i] = r[i] + beta * (p[i] - w * v[i]);
-          y[i] = d[i] * p[i];
-        }
-      });
-      alpha = rho / product(y, v, r0);
-      const double s2 = sum_rows<1>([&](int64_t lo, int64_t hi, double* sum) {
-        for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
-          sv[i] = r[i] - alpha * v[i];
-          z[i] = d[i] * sv[i];
-          sum[i & 1] += sv[i] * sv[i];
-        }
-      })[0];
-      ++it;
-      if (s2 <= tol2) {  // converged halfway: x + alpha y
-        for_rows([&](int64_t lo, int64_t hi) {
-          for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
-            x[i] += alpha * y[i];
-            r[i] = sv[i];
-          }
-        });
-        r2 = s2;
-        break;
-      }
-      const auto tz = sum_rows<2>([&](int64_t lo, int64_t hi, double* sum) {
-        A_.multiply(z, lo, hi, [&](int64_t i, double y0, double y1) {
-          t[2 * i] = y0;
-          t[2 * i + 1] = y1;
-          sum[0] += y0 * y0;
-          sum[1] += y1 * y1;
-          sum[2] += y0 * sv[2 * i];
-          sum[3] += y1 * sv[2 * i + 1];
-        });
-      });
-      const double t2 = tz[0];
-      w = t2 > 0.0 ? tz[1] / t2 : 0.0;
-      const auto rn = sum_rows<2>([&](int64_t lo, int64_t hi, double* sum) {
-        for (int64_t i = 2 * lo; i < 2 * hi; ++i) {
-          x[i] += alpha * y[i] + w * z[i];
-          r[i] = sv[i] - w * t[i];
-          sum[i & 1] += r[i] * r[i];
-          sum[2 + (i & 1)] += r0[i] * r[i];
-        }
-      });
-      r2 = rn[0];
-      rho_next = rn[1];
-    }
-    out.iterations = it;
-    out.residual = std::sqrt(r2 / bb);
-    out.converged = out.residual <= 1e-12;
-    return out;
+    return krylov_.template sum_rows<K>(body);
   }
 
   /// A = M - h D - h^2 K with the pinned rows and columns replaced by the identity, in the fixed
-  /// block pattern of A_: A_ starts as M (the identity for pinned particles) and each entry the
-  /// forces emit adds, times -h^2 (df/dx) or -h (df/dv), into its place in A_'s values (found once,
+  /// block pattern of sys_.a: A starts as M (the identity for pinned particles) and each entry the
+  /// forces emit adds, times -h^2 (df/dx) or -h (df/dv), into its place in A's values (found once,
   /// by pattern()), so a step sorts and allocates nothing. Also kv_ = K v0. The forces hand their
   /// entries (16 per spring, as 4 2x2 blocks) straight to a Scatter, which checks each one's
   /// position against the pattern's and adds it into its place (and into K v0, a block's row times
@@ -408,10 +185,10 @@ class ImplicitEuler : public Integrator {
                 const Eigen::Map<const Eigen::VectorXd>& v0) {
     auto start = [&] {
       for_rows([&](int64_t lo, int64_t hi) {
-        const auto at = [&](int64_t i) { return A_.value.begin() + 4 * A_.first[i]; };
+        const auto at = [&](int64_t i) { return sys_.a.value.begin() + 4 * sys_.a.first[i]; };
         std::fill(at(lo), at(hi), 0.0);
         for (int64_t i = lo; i < hi; ++i) {
-          double* d = A_.value.data() + 4 * diag_block_[static_cast<std::size_t>(i)];
+          double* d = sys_.a.value.data() + 4 * sys_.diag_block[static_cast<std::size_t>(i)];
           d[0] = m_[2 * i] > 0.0 ? m_[2 * i] : 1.0;
           d[3] = m_[2 * i + 1] > 0.0 ? m_[2 * i + 1] : 1.0;
           kv_[2 * i] = kv_[2 * i + 1] = 0.0;
@@ -448,12 +225,12 @@ class ImplicitEuler : public Integrator {
     }
   }
 
-  /// Adds every force's entries into A_ (already M) and kv_ (already 0), fill(k, x, v)
+  /// Adds every force's entries into A (already M) and kv_ (already 0), fill(k, x, v)
   /// handing force k's entries to its Scatters. The forces go in groups (pattern()): group
-  /// 0, every force not in a group of its own in scene order, into A_ itself; each other
+  /// 0, every force not in a group of its own in scene order, into A itself; each other
   /// group, one concurrent() force with many entries, into its own zeroed copy of A's values
   /// and of kv (on another thread when there is one: the plugin contract lets two such
-  /// forces run at once), added to A_ and kv_ afterwards, group by group. The groups depend
+  /// forces run at once), added to A and kv_ afterwards, group by group. The groups depend
   /// on the forces and their entries only, so the sums, and the bits, are the same for any
   /// thread count. Returns whether every force's entries matched the pattern.
   template <class Fill>
@@ -463,12 +240,12 @@ class ImplicitEuler : public Integrator {
     if (complete_.size() != px_.size()) complete_.assign(px_.size(), 0);
     errors_.assign(px_.size(), nullptr);
     for_chunks(groups, 1, [&](std::size_t g, std::size_t, std::size_t) {
-      double* a = A_.value.data();
+      double* a = sys_.a.value.data();
       double* kv = kv_.data();
       if (g > 0) {
         std::vector<double>& values = own_[g - 1].values;
         Eigen::VectorXd& own_kv = own_[g - 1].kv;
-        values.assign(A_.value.size(), 0.0);
+        values.assign(sys_.a.value.size(), 0.0);
         own_kv.setZero(n);
         a = values.data();
         kv = own_kv.data();
@@ -493,19 +270,21 @@ class ImplicitEuler : public Integrator {
       if (!c) return false;
     if (groups == 1) return true;
     for_rows([&](int64_t lo, int64_t hi) {
-      const std::size_t b = 4 * static_cast<std::size_t>(A_.first[static_cast<std::size_t>(lo)]),
-                        e = 4 * static_cast<std::size_t>(A_.first[static_cast<std::size_t>(hi)]);
+      const std::size_t b = 4 *
+                            static_cast<std::size_t>(sys_.a.first[static_cast<std::size_t>(lo)]),
+                        e = 4 *
+                            static_cast<std::size_t>(sys_.a.first[static_cast<std::size_t>(hi)]);
       for (const OwnGroup& o : own_) {
-        for (std::size_t q = b; q < e; ++q) A_.value[q] += o.values[q];
+        for (std::size_t q = b; q < e; ++q) sys_.a.value[q] += o.values[q];
         for (int64_t i = 2 * lo; i < 2 * hi; ++i) kv_[i] += o.kv[i];
       }
     });
     return true;
   }
 
-  /// Where one Jacobian's entries go in A_'s values: per single entry its value's index
+  /// Where one Jacobian's entries go in A's values: per single entry its value's index
   /// (-1: a pinned row or column) and position row * n + col; per 2x2 block its block's
-  /// index in A_ (-1: pinned) and its particles (uint64 i << 32 | j), as pattern() found
+  /// index in A (-1: pinned) and its particles (uint64 i << 32 | j), as pattern() found
   /// them, in the order they came.
   struct Slots {
     std::vector<int64_t> single, key, block;
@@ -536,7 +315,7 @@ class ImplicitEuler : public Integrator {
       if (kv) kv[row] += value * v0[col];
       ++k;
     }
-    void add_block(uint64_t key, const double* v) {  // v column-major, A_'s blocks row-major
+    void add_block(uint64_t key, const double* v) {  // v column-major, A's blocks row-major
       if (!ok || b >= p->block_key.size() || p->block_key[b] != key) {
         ok = false;
         return;
@@ -586,47 +365,8 @@ class ImplicitEuler : public Integrator {
     }
   };
 
-  /// Whether A_ is symmetric up to rounding: |a_ij - a_ji| <= 1e-13 |a_ii|^1/2 |a_jj|^1/2
-  /// for every off-diagonal entry, compared with its transpose entry (in the block tblock_
-  /// found by pattern(); if the pattern lacks that block the bound applies to a_ij alone).
-  /// The entries of a symmetric Jacobian are sums whose order and rounding can differ
-  /// between (i, j) and (j, i) by a few ulps of the diagonal; CG's use of A for A^T then errs
-  /// by under 1e-13 of the Jacobi-scaled A per entry, the order of its own 1e-12 tolerance.
-  /// A real asymmetry (a turning damped spring) is far above that. A NaN fails.
-  bool is_symmetric() {
-    const int64_t np = A_.rows();
-    if (root_diag_.size() != static_cast<std::size_t>(2 * np))
-      root_diag_.resize(static_cast<std::size_t>(2 * np));
-    double* sd = root_diag_.data();
-    const double* a = A_.value.data();
-    for (int64_t i = 0; i < np; ++i) {
-      const double* d = a + 4 * diag_block_[static_cast<std::size_t>(i)];
-      sd[2 * i] = std::sqrt(std::abs(d[0]));
-      sd[2 * i + 1] = std::sqrt(std::abs(d[3]));
-    }
-    for (int64_t i = 0; i < np; ++i) {
-      for (int64_t k = A_.first[static_cast<std::size_t>(i)];
-           k < A_.first[static_cast<std::size_t>(i) + 1]; ++k) {
-        const int64_t j = A_.col[static_cast<std::size_t>(k)];
-        const int64_t t = tblock_[static_cast<std::size_t>(k)];
-        const double* q = a + 4 * k;
-        if (j == i) {
-          if (!(std::abs(q[1] - q[2]) <= 1e-13 * (sd[2 * i] * sd[2 * i + 1]))) return false;
-          continue;
-        }
-        if (t >= 0 && j < i) continue;  // the pair, seen from the other side
-        for (int r = 0; r < 2; ++r)
-          for (int c = 0; c < 2; ++c) {
-            const double diff = t < 0 ? q[2 * r + c] : q[2 * r + c] - a[4 * t + 2 * c + r];
-            if (!(std::abs(diff) <= 1e-13 * (sd[2 * i + r] * sd[2 * j + c]))) return false;
-          }
-      }
-    }
-    return true;
-  }
-
   bool same_size_and_pins(Eigen::Index n) const {
-    if (2 * A_.rows() != n) return false;
+    if (2 * sys_.a.rows() != n) return false;
     for (Eigen::Index i = 0; i < n; ++i)
       if ((m_[i] > 0.0) != free_[static_cast<std::size_t>(i)]) return false;
     return true;
@@ -662,21 +402,21 @@ class ImplicitEuler : public Integrator {
       keys.push_back(static_cast<uint64_t>(i) << 32 | static_cast<uint64_t>(i));
     std::sort(keys.begin(), keys.end());
     keys.erase(std::unique(keys.begin(), keys.end()), keys.end());
-    A_.first.assign(static_cast<std::size_t>(np) + 1, 0);
-    A_.col.resize(keys.size());
+    sys_.a.first.assign(static_cast<std::size_t>(np) + 1, 0);
+    sys_.a.col.resize(keys.size());
     for (std::size_t k = 0; k < keys.size(); ++k) {
-      ++A_.first[(keys[k] >> 32) + 1];
-      A_.col[k] = static_cast<int32_t>(keys[k] & 0xffffffffu);
+      ++sys_.a.first[(keys[k] >> 32) + 1];
+      sys_.a.col[k] = static_cast<int32_t>(keys[k] & 0xffffffffu);
     }
     for (int64_t i = 0; i < np; ++i)
-      A_.first[static_cast<std::size_t>(i) + 1] += A_.first[static_cast<std::size_t>(i)];
-    A_.value.assign(4 * keys.size(), 0.0);
+      sys_.a.first[static_cast<std::size_t>(i) + 1] += sys_.a.first[static_cast<std::size_t>(i)];
+    sys_.a.value.assign(4 * keys.size(), 0.0);
     auto slots = [&](const JacobianEntries& t, Slots& out) {
       out.single.resize(t.single.size());
       out.key.resize(t.single.size());
       for (std::size_t k = 0; k < t.single.size(); ++k) {
         const auto& e = t.single[k];
-        out.single[k] = kept(e.row(), e.col()) ? 4 * A_.find(e.row() / 2, e.col() / 2) +
+        out.single[k] = kept(e.row(), e.col()) ? 4 * sys_.a.find(e.row() / 2, e.col() / 2) +
                                                      2 * (e.row() % 2) + (e.col() % 2)
                                                : -1;
         out.key[k] = e.row() * n + e.col();
@@ -686,7 +426,7 @@ class ImplicitEuler : public Integrator {
       for (std::size_t b = 0; b < t.blocks.size(); ++b) {
         const int64_t i = static_cast<int64_t>(t.blocks[b] >> 32),
                       j = static_cast<int64_t>(t.blocks[b] & 0xffffffffu);
-        out.block[b] = kept(2 * i, 2 * j) ? A_.find(i, j) : -1;
+        out.block[b] = kept(2 * i, 2 * j) ? sys_.a.find(i, j) : -1;
       }
     };
     px_.resize(ex_.size());
@@ -705,14 +445,7 @@ class ImplicitEuler : public Integrator {
       group_[k] = ++own;
     }
     own_.resize(own);
-    diag_block_.resize(static_cast<std::size_t>(np));
-    for (int64_t i = 0; i < np; ++i) diag_block_[static_cast<std::size_t>(i)] = A_.find(i, i);
-    // The block of each block's transpose (the pattern need not be symmetric).
-    tblock_.resize(static_cast<std::size_t>(A_.blocks()));
-    for (int64_t i = 0; i < np; ++i)
-      for (int64_t k = A_.first[static_cast<std::size_t>(i)];
-           k < A_.first[static_cast<std::size_t>(i) + 1]; ++k)
-        tblock_[static_cast<std::size_t>(k)] = A_.find(A_.col[static_cast<std::size_t>(k)], i);
+    sys_.index();
   }
 
   /// Refuses a solve whose velocity error bound (sum r_i^2 / m_i)^1/2 exceeds
@@ -723,7 +456,7 @@ class ImplicitEuler : public Integrator {
     const double* vel = s.v.data();
     // Per chunk of rows: the sums, and the dof with the largest r_i^2 / m_i (a NaN is the
     // worst) in worst_[2 c] (its value) and worst_[2 c + 1] (the dof, -1: none).
-    const std::size_t chunks = chunk_count(static_cast<std::size_t>(np_), kRows);
+    const std::size_t chunks = chunk_count(static_cast<std::size_t>(krylov_.rows()), kRows);
     if (worst_.size() < 2 * chunks) worst_.resize(2 * chunks);
     const auto sums = sum_rows<2>([&](int64_t lo, int64_t hi, double* sum) {
       double worst = 0.0;
@@ -740,7 +473,7 @@ class ImplicitEuler : public Integrator {
           at = i;
         }
       };
-      A_.multiply(dv.data(), lo, hi, [&](int64_t i, double y0, double y1) {
+      sys_.a.multiply(dv.data(), lo, hi, [&](int64_t i, double y0, double y1) {
         dof(2 * i, y0);
         dof(2 * i + 1, y1);
       });
@@ -803,6 +536,13 @@ class ImplicitEuler : public Integrator {
     return fmt::format("; stiffest force: {} ((h^2 |df/dx| + h |df/dv|) / m up to {:.6g})", k, w);
   }
 
+  bool last_system_transposed(BlockSystem& out, bool& symmetric) const override {
+    if (!solved_ || !sys_.symmetric_pattern()) return false;
+    sys_.transpose_into(out);
+    symmetric = solved_symmetric_;
+    return true;
+  }
+
   nlohmann::json stats() const override {
     return {
         {"linear_solves", solves_},
@@ -827,10 +567,8 @@ class ImplicitEuler : public Integrator {
   Eigen::Matrix2Xd f_;
   std::vector<JacobianEntries> ex_, ev_;  ///< per force: df/dx, df/dv entries (pattern build)
   Eigen::VectorXd m_, kv_, b_, r_;        ///< masses (0: pinned), K v_n, right side, residual
-  Eigen::VectorXd r0_, p_, v_, y_, z_, s_, t_, inv_diag_;  ///< the Krylov solves' vectors
-  // The pattern of A_: where each entry goes in A_'s values and the entries' positions it
+  // The pattern of A: where each entry goes in A's values and the entries' positions it
   // was built for (Slots), the free dofs it was built for, each diagonal block's index.
-  // tblock_: per block of A_, the block of its transpose (-1: not in the pattern).
   std::vector<Slots> px_, pv_;  ///< per force
   /// Per force its group (scatter_groups): 0, or g >= 1 for own_[g - 1].
   std::vector<std::size_t> group_;
@@ -842,13 +580,13 @@ class ImplicitEuler : public Integrator {
   std::vector<char> complete_;              ///< per force: its entries matched the pattern
   std::vector<std::exception_ptr> errors_;  ///< per force: what its Jacobians threw
   uint64_t pattern_builds_ = 0;             ///< pattern() calls (stats)
-  std::vector<int64_t> diag_block_, tblock_;
-  std::vector<double> root_diag_;  ///< |a_ii|^1/2 (is_symmetric)
-  int64_t np_ = 0;                 ///< particles (block rows) of this step
-  std::vector<double> partial_;    ///< sum_rows' per-chunk sums
-  std::vector<double> worst_;      ///< check_accuracy's per-chunk worst dof
+  std::vector<double> root_diag_;           ///< |a_ii|^1/2 (BlockSystem::is_symmetric)
+  std::vector<double> worst_;               ///< check_accuracy's per-chunk worst dof
   std::vector<bool> free_;
-  BlockSparseMatrix2 A_;
+  BlockSystem sys_;                ///< A, its diagonal blocks and transposes
+  bool solved_ = false;            ///< the last step solved sys_ (last_system_transposed)
+  bool solved_symmetric_ = false;  ///< and found it symmetric
+  BlockKrylov krylov_;             ///< the solves (and their vectors)
 };
 
 }  // namespace

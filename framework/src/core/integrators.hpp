@@ -103,6 +103,17 @@ struct ImplicitEulerOptions {
 };
 /// Linearized backward Euler of Baraff & Witkin 1998 (integrator_implicit_euler.cpp).
 std::unique_ptr<Integrator> make_implicit_euler(const ImplicitEulerOptions& options = {});
+
+struct BlockSystem;
+/// An integrator whose step solves a linear system A dv = b (implicit Euler): the system of
+/// its last step, for the adjoint of that step (gradients/step_adjoint_implicit.cpp).
+class LinearSystemStep {
+ public:
+  virtual ~LinearSystemStep() = default;
+  /// out = A^T of the last step (storage reused) and whether A was symmetric; false (out
+  /// untouched) when there is none or A's block pattern lacks the transpose of a block.
+  virtual bool last_system_transposed(BlockSystem& out, bool& symmetric) const = 0;
+};
 /// Extended position-based dynamics with small steps, Macklin, Müller & Chentanez 2016 and
 /// Macklin et al. 2019, on the forces' constraints (integrator_xpbd.cpp, docs/xpbd.md).
 std::unique_ptr<Integrator> make_xpbd(const XpbdSettings& settings);

@@ -13,6 +13,7 @@
 #include "core/input_error.hpp"
 #include "core/instances.hpp"
 #include "core/integrator.hpp"
+#include "core/integrators.hpp"
 #include "core/set_path.hpp"
 #include "gradients/checkpoints.hpp"
 #include "gradients/drift_record.hpp"
@@ -736,6 +737,8 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
   Adjoint a;
   a.reset(np, model.slots());
   const std::unique_ptr<Integrator> replay = make_integrator(r.integrator);
+  // implicit Euler's replay hands its step's system to the adjoint step (no assembly there)
+  const auto* linear = dynamic_cast<const LinearSystemStep*>(replay.get());
   const uint64_t evals1 = sim.force_evaluations(), jac1 = sim.jacobian_evaluations();
   uint64_t cur = 0;
   std::map<uint64_t, State> term_states;  // the segment's states that a loss term reads
@@ -769,6 +772,11 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
         sim.state().t = static_cast<double>(cur) * h;
         const bool recorded = recording && recording->began();
         fill_tape(scheme, model, sim.state(), h, recorded, seen, *tape);
+        tape->has_system =
+            linear != nullptr && linear->last_system_transposed(tape->system, tape->symmetric);
+        if (tape->has_system)
+          r.system_blocks =
+              std::max(r.system_blocks, static_cast<uint64_t>(tape->system.a.blocks()));
         if (recorded) {
           std::vector<Finding> found = tape->drift.findings;
           assess_impacts(tape->drift, found);

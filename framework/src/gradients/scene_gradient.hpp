@@ -81,6 +81,9 @@ struct GradientReport {
   static constexpr std::size_t kMaxFindings = 100;
   std::string backend, integrator;
   uint64_t steps = 0, segment = 0, checkpoints = 0, peak_states = 0;
+  /// Implicit Euler: the most 2x2 blocks of a step's system that a step record held (the
+  /// replay's A^T, kept for the adjoint step); 0 otherwise.
+  uint64_t system_blocks = 0;
   double forward_s = 0.0, backward_s = 0.0;                    ///< wall time of each pass
   uint64_t forward_force_evals = 0, backward_force_evals = 0;  ///< force sums over all forces
   uint64_t jacobian_evals = 0;                                 ///< Jacobian assemblies (backward)

@@ -58,6 +58,7 @@ void Adjoint::reset(Eigen::Index n, Eigen::Index p) {
   gp.setZero(p);
   material = MaterialGrad{};
   pending = false;
+  scratch.mu.resize(0);
 }
 
 void adjoint_finish(ForceModel& forces, Adjoint& a) { flush_pending(forces, a, a.gx); }

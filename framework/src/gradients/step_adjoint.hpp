@@ -8,6 +8,7 @@
 #include <pinsim/state.hpp>
 #include <string>
 
+#include "core/block_krylov.hpp"
 #include "gradients/drift_adjoint.hpp"
 #include "gradients/drift_tape.hpp"
 #include "gradients/force_model.hpp"
@@ -29,6 +30,10 @@ struct StepTape {
   /// correction and, with velocity-dependent forces, the predictor's velocities.
   Eigen::Matrix2Xd x1, vc, vp;
   bool predicted = false;
+  /// Implicit Euler: A^T of the step's system as its replay assembled it (has_system), and
+  /// whether A is symmetric; without it the adjoint assembles A from the Jacobians.
+  BlockSystem system;
+  bool has_system = false, symmetric = false;
 };
 
 /// The adjoint of a run's state at one time, and of its parameters so far.
@@ -47,6 +52,8 @@ struct Adjoint {
   struct Scratch {
     State s1, s2;
     Eigen::Matrix2Xd gx1, vc_bar, vp_bar, w, w_pos, a0_bar, unused;
+    BlockKrylov krylov;          ///< implicit Euler's transposed solves
+    Eigen::VectorXd mu, rhs, r;  ///< their solution (the next solve's guess), right side
   } scratch;
 
   /// Zero adjoints for n particles and p parameter components.

@@ -81,6 +81,51 @@ Eigen::VectorXd transposed_solve(const Sparse& a, const Eigen::VectorXd& rhs, Ad
 
 Eigen::Map<const Eigen::VectorXd> flat(const Eigen::Matrix2Xd& m) { return {m.data(), m.size()}; }
 
+/// Solves A^T mu = rhs with A^T as the step's replay assembled it (`at`), by the forward's own
+/// solvers (core/block_krylov.hpp): conjugate gradients when A is symmetric, BiCGSTAB
+/// otherwise, Jacobi-preconditioned to a relative residual of 1e-12, started from the last
+/// adjoint step's mu when that beats 0 (the adjoint, like the motion, changes little from
+/// step to step); sparse LU if they fail. Throws std::runtime_error if that fails too.
+const Eigen::VectorXd& transposed_solve(const BlockSystem& at, bool symmetric,
+                                        const Eigen::Map<const Eigen::VectorXd>& rhs,
+                                        Adjoint::Scratch& sc, AdjointStats& st) {
+  ++st.solves;
+  const Eigen::Index n = rhs.size();
+  sc.rhs = rhs;
+  if (sc.mu.size() != n) sc.mu.setZero(n);
+  if (sc.r.size() != n) sc.r.resize(n);
+  sc.krylov.resize(n / 2);
+  double bb = 0.0;
+  for (Eigen::Index i = 0; i < n; ++i) bb += sc.rhs[i] * sc.rhs[i];
+  if (!(sc.krylov.residual_of(at, sc.rhs, sc.mu, sc.r) < bb)) {
+    sc.mu.setZero();
+    sc.r = sc.rhs;
+  }
+  const Eigen::Index max_iterations = std::max<Eigen::Index>(100, 4 * n);
+  const BlockKrylov::Solve out =
+      symmetric ? sc.krylov.cg(at, bb, sc.mu, sc.r, max_iterations)
+                : sc.krylov.bicgstab(at, sc.rhs, bb, sc.mu, sc.r, max_iterations);
+  st.solve_iterations += static_cast<uint64_t>(out.iterations);
+  double res = out.residual;
+  if (!out.converged) {
+    ++st.lu_fallbacks;
+    const Sparse a = at.a.to_eigen();
+    Eigen::SparseLU<Sparse> lu;
+    lu.compute(a);
+    if (lu.info() != Eigen::Success)
+      throw std::runtime_error("implicit_euler adjoint: the transposed system is singular");
+    sc.mu = lu.solve(sc.rhs);
+    const double bn = std::sqrt(bb);
+    res = (a * sc.mu - sc.rhs).norm() / (bn > 0.0 ? bn : 1.0);
+    if (!(res <= 1e-10))
+      throw std::runtime_error(
+          "implicit_euler adjoint: the transposed solve left relative residual " +
+          std::to_string(res));
+  }
+  st.worst_residual = std::max(st.worst_residual, res);
+  return sc.mu;
+}
+
 }  // namespace
 
 // Forward (integrator_implicit_euler.cpp):
@@ -107,17 +152,25 @@ void adjoint_implicit_euler(ForceModel& forces, const StepTape& tape, double h, 
   Eigen::Matrix2Xd lam = a.gv;
   for (Eigen::Index i = 0; i < np; ++i)
     if (!(s0.inv_mass[i] > 0.0)) lam.col(i).setZero();
-  Sparse K, D;
-  forces.jacobians(s0, K, D);
-  const Sparse A = system_matrix(s0, K, D, h);
-  const Eigen::VectorXd mu_flat = transposed_solve(A, flat(lam), stats);
-  const Eigen::Matrix2Xd mu = Eigen::Map<const Eigen::Matrix2Xd>(mu_flat.data(), 2, np);
-  // first order: b = h f + h^2 K v0; kx = h K^T mu, dx = h D^T mu from the K and D at hand
-  const Eigen::Matrix2Xd hmu = h * mu;
-  Eigen::Matrix2Xd kx(2, np), dx(2, np);
-  Eigen::Map<Eigen::VectorXd>(kx.data(), kx.size()) = K.transpose() * flat(hmu);
-  Eigen::Map<Eigen::VectorXd>(dx.data(), dx.size()) = D.transpose() * flat(hmu);
-  forces.param_vjp(s0, hmu, a.gp);
+  // first order: b = h f + h^2 K v0; kx = h K^T mu, dx = h D^T mu
+  Eigen::Matrix2Xd mu(2, np), kx(2, np), dx(2, np);
+  if (tape.has_system) {
+    Eigen::Map<Eigen::VectorXd>(mu.data(), mu.size()) =
+        transposed_solve(tape.system, tape.symmetric, flat(lam), a.scratch, stats);
+    kx.setZero();
+    dx.setZero();
+    forces.vjp(s0, h * mu, kx, dx);
+  } else {
+    Sparse K, D;
+    forces.jacobians(s0, K, D);
+    const Sparse A = system_matrix(s0, K, D, h);
+    const Eigen::VectorXd mu_flat = transposed_solve(A, flat(lam), stats);
+    mu = Eigen::Map<const Eigen::Matrix2Xd>(mu_flat.data(), 2, np);
+    const Eigen::Matrix2Xd hmu = h * mu;
+    Eigen::Map<Eigen::VectorXd>(kx.data(), kx.size()) = K.transpose() * flat(hmu);
+    Eigen::Map<Eigen::VectorXd>(dx.data(), dx.size()) = D.transpose() * flat(hmu);
+  }
+  forces.param_vjp(s0, h * mu, a.gp);
   a.gx += kx;
   a.gv += dx + h * kx;
   // second order, along (a, c) = (h^2 v', h dv)

@@ -147,8 +147,27 @@ Eigen::Matrix2Xd kicked(const State& s, const Eigen::Matrix2Xd& v, const Eigen::
   return out;
 }
 
-/// One reference step of `scheme` on free particles; fills the tape.
-void ref_step(Scheme scheme, Springs& f, State& s, double h, StepTape* tape) {
+/// The dense matrix a as a BlockSystem with every 2x2 block in its pattern.
+BlockSystem dense_blocks(const Eigen::MatrixXd& a) {
+  BlockSystem out;
+  const int64_t np = a.rows() / 2;
+  out.a.first.assign(static_cast<std::size_t>(np) + 1, 0);
+  for (int64_t i = 0; i < np; ++i) {
+    out.a.first[static_cast<std::size_t>(i) + 1] = (i + 1) * np;
+    for (int64_t j = 0; j < np; ++j) {
+      out.a.col.push_back(static_cast<int32_t>(j));
+      for (int r = 0; r < 2; ++r)
+        for (int c = 0; c < 2; ++c) out.a.value.push_back(a(2 * i + r, 2 * j + c));
+    }
+  }
+  out.index();
+  return out;
+}
+
+/// One reference step of `scheme` on free particles; fills the tape (implicit Euler with
+/// `with_system`: its A^T too, as the replay of a run hands it to the adjoint step).
+void ref_step(Scheme scheme, Springs& f, State& s, double h, StepTape* tape,
+              bool with_system = false) {
   Eigen::Matrix2Xd f0;
   f.force(s, f0);
   if (tape) tape->start = s;
@@ -200,6 +219,11 @@ void ref_step(Scheme scheme, Springs& f, State& s, double h, StepTape* tape) {
       b[i] = 0.0;
     }
     const Eigen::VectorXd dv = a.partialPivLu().solve(b);
+    if (tape && with_system) {
+      tape->system = dense_blocks(a.transpose());
+      tape->has_system = true;
+      tape->symmetric = (a - a.transpose()).norm() <= 1e-14 * a.norm();
+    }
     Eigen::Matrix2Xd v1 = s.v + Eigen::Map<const Eigen::Matrix2Xd>(dv.data(), 2, s.x.cols());
     if (tape) tape->drift = free_tape(s, v1, h);
     s.x = free_drift(s, v1, h);
@@ -215,7 +239,7 @@ double run_functional(Scheme scheme, System sys, int steps, double h, const Eige
   return (a.array() * sys.s.x.array()).sum() + (b.array() * sys.s.v.array()).sum();
 }
 
-void check_scheme(Scheme scheme, double kd, bool dissipative = true) {
+void check_scheme(Scheme scheme, double kd, bool dissipative = true, bool with_system = false) {
   System sys;
   sys.f.kd = kd;
   sys.f.dissipative = dissipative;
@@ -228,7 +252,8 @@ void check_scheme(Scheme scheme, double kd, bool dissipative = true) {
   System fw = sys;
   std::vector<StepTape> tapes(steps);
   for (int k = 0; k < steps; ++k)
-    ref_step(scheme, fw.f, fw.s, h, &tapes[static_cast<std::size_t>(k)]);
+    ref_step(scheme, fw.f, fw.s, h, &tapes[static_cast<std::size_t>(k)], with_system);
+  if (with_system) CHECK(tapes[0].symmetric == (kd == 0.0));
   Adjoint adj;
   adj.reset(4, 4);
   adj.gx = a;
@@ -284,6 +309,14 @@ TEST_CASE("adjoint step: implicit Euler, the transposed solve and its second-ord
           "[gradients][steps]") {
   check_scheme(Scheme::kImplicitEuler, 0.0);
   check_scheme(Scheme::kImplicitEuler, 0.3);
+}
+
+// The same with A^T from the tape, as a run's replay gives it (the forward's block solvers:
+// conjugate gradients for the symmetric A of kd = 0, BiCGSTAB for the turning damped springs).
+TEST_CASE("adjoint step: implicit Euler with the replay's system, block solvers",
+          "[gradients][steps]") {
+  check_scheme(Scheme::kImplicitEuler, 0.0, true, true);
+  check_scheme(Scheme::kImplicitEuler, 0.3, true, true);
 }
 
 // A projectile under gravity, symplectic Euler: x(T) = x0 + vx0 T, so d x(T) / d vx0 = T
