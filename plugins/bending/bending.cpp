@@ -194,14 +194,15 @@ void Bending::constraints(const double* x, const uint64_t* which, std::size_t n,
   }
 }
 
-// Second derivatives of s = âᵀ M b̂ in the edge vectors (Π_u = I - ûûᵀ, m = M b̂, n = Mᵀ â),
-// from ∂â/∂a = Π_a / a (seed, "Gradient of unit distance vector"):
-//   ds/da = Π_a m / a,   ds/db = Π_b n / b
-//   d2s/da2 = -(Π_a m âᵀ + â mᵀ Π_a + (â·m) Π_a) / a²
-//   d2s/db2 = -(Π_b n b̂ᵀ + b̂ nᵀ Π_b + (b̂·n) Π_b) / b²
-//   d2s/dadb = Π_a M Π_b / (a b)
-// With a = p1 - p0, b = p2 - p1 (da/dp = [-I, I, 0], db/dp = [0, -I, I]) and f = k/2 ds/dp,
-// df_i/dp_j = k/2 Σ D_i D_j H over the (a, b) pairs.
+// The product in the angle form: with ψ = θ - θ0 and its gradient in the edge vectors
+// g = (g_a, g_b) = (-a⊥/|a|², b⊥/|b|²) (a⊥ = R a, R the quarter turn; the angle of a has
+// gradient a⊥/|a|²), E = -k/2 cos ψ has the Hessian
+//   H = k/2 cos ψ g gᵀ + k/2 sin ψ diag(-S(a), S(b)),  S(u) = R/|u|² - 2 u⊥ uᵀ/|u|⁴
+// (S(u) the Hessian of u's angle, symmetric; the cross block of ψ's Hessian is zero). The
+// force f = -dE/dp, so gx = (df/dp)ᵀ w = -Dᵀ H D w with D w = (w1 - w0, w2 - w1) and
+// Dᵀ (r_a, r_b) = (-r_a, r_a - r_b, r_b). cos ψ = cos θ c0 + sin θ s0, sin ψ = sin θ c0 -
+// cos θ s0, cos θ = a·b/(|a||b|), sin θ = a×b/(|a||b|). The same matrix as add_dfdx's (the
+// second derivatives of s = âᵀ M b̂ = cos ψ), in fewer operations.
 void Bending::add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx,
                                     ForceOut*) const {
   const double* x = s.x.data();
@@ -214,45 +215,43 @@ void Bending::add_jacobian_products(const StateView& s, const Field& w, ForceOut
     const double la = std::sqrt(ax * ax + ay * ay), lb = std::sqrt(bx * bx + by * by);
     if (!(la > kMinLength && lb > kMinLength)) continue;
     const double ia = 1.0 / la, ib = 1.0 / lb;
-    const double c = flat_ ? 1.0 : c0_[e], sn = flat_ ? 0.0 : s0_[e];
-    const double ahx = ax * ia, ahy = ay * ia, bhx = bx * ib, bhy = by * ib;
-    // M = [[c, sn], [-sn, c]]: m = M b̂, n = Mᵀ â
-    const double mx = c * bhx + sn * bhy, my = -sn * bhx + c * bhy;
-    const double nx = c * ahx - sn * ahy, ny = sn * ahx + c * ahy;
+    const double ia2 = ia * ia, ib2 = ib * ib, iab = ia * ib;
+    const double ct = (ax * bx + ay * by) * iab, st = (ax * by - ay * bx) * iab;
+    double cp = ct, sp = st;  // cos ψ, sin ψ
+    if (!flat_) {
+      cp = ct * c0_[e] + st * s0_[e];
+      sp = st * c0_[e] - ct * s0_[e];
+    }
+    const double h = 0.5 * k_of(e);
+    const double e1 = h * sp, e2 = h * cp;
     const double wax = wd[2 * p1] - wd[2 * p0], way = wd[2 * p1 + 1] - wd[2 * p0 + 1];
     const double wbx = wd[2 * p2] - wd[2 * p1], wby = wd[2 * p2 + 1] - wd[2 * p1 + 1];
-    // Π_a u = u - â (â·u), likewise Π_b
-    const double aw = ahx * wax + ahy * way, bw = bhx * wbx + bhy * wby;
-    const double am = ahx * mx + ahy * my, bn = bhx * nx + bhy * ny;
-    const double pax = wax - ahx * aw, pay = way - ahy * aw;  // Π_a wa
-    const double pbx = wbx - bhx * bw, pby = wby - bhy * bw;  // Π_b wb
-    const double qax = mx - ahx * am, qay = my - ahy * am;    // Π_a m
-    const double qbx = nx - bhx * bn, qby = ny - bhy * bn;    // Π_b n
-    // Haa wa = -(Π_a m (â·wa) + â (m·Π_a wa) + (â·m) Π_a wa) / a², Hbb wb likewise
-    const double mpa = mx * pax + my * pay, npb = nx * pbx + ny * pby;
-    const double ia2 = ia * ia, ib2 = ib * ib, iab = ia * ib;
-    const double haax = -(qax * aw + ahx * mpa + am * pax) * ia2;
-    const double haay = -(qay * aw + ahy * mpa + am * pay) * ia2;
-    const double hbbx = -(qbx * bw + bhx * npb + bn * pbx) * ib2;
-    const double hbby = -(qby * bw + bhy * npb + bn * pby) * ib2;
-    // Hab wb = Π_a M Π_b wb / (a b), Hba wa = Π_b Mᵀ Π_a wa / (a b)
-    const double ux = c * pbx + sn * pby, uy = -sn * pbx + c * pby;  // M Π_b wb
-    const double tx = c * pax - sn * pay, ty = sn * pax + c * pay;   // Mᵀ Π_a wa
-    const double au = ahx * ux + ahy * uy, bt = bhx * tx + bhy * ty;
-    const double habx = (ux - ahx * au) * iab, haby = (uy - ahy * au) * iab;
-    const double hbax = (tx - bhx * bt) * iab, hbay = (ty - bhy * bt) * iab;
-    const double h = 0.5 * k_of(e);
-    const double gax = h * (haax + habx), gay = h * (haay + haby);
-    const double gbx = h * (hbax + hbbx), gby = h * (hbay + hbby);
-    out[2 * p0] -= gax;
-    out[2 * p0 + 1] -= gay;
-    out[2 * p1] += gax - gbx;
-    out[2 * p1 + 1] += gay - gby;
-    out[2 * p2] += gbx;
-    out[2 * p2 + 1] += gby;
+    // g_a = -a⊥/|a|² = (ay, -ax)/|a|², g_b = b⊥/|b|² = (-by, bx)/|b|²
+    const double gax = ay * ia2, gay = -ax * ia2, gbx = -by * ib2, gby = bx * ib2;
+    const double gw = e2 * (gax * wax + gay * way + gbx * wbx + gby * wby);
+    // S(u) v = (R v - 2 u⊥ (u·v)/|u|²)/|u|², R v = (-v_y, v_x), u⊥ = (-u_y, u_x)
+    const double qa = 2.0 * (ax * wax + ay * way) * ia2, qb = 2.0 * (bx * wbx + by * wby) * ib2;
+    const double sax = (-way + ay * qa) * ia2, say = (wax - ax * qa) * ia2;
+    const double sbx = (-wby + by * qb) * ib2, sby = (wbx - bx * qb) * ib2;
+    const double rax = gw * gax - e1 * sax, ray = gw * gay - e1 * say;  // (H D w)_a
+    const double rbx = gw * gbx + e1 * sbx, rby = gw * gby + e1 * sby;  // (H D w)_b
+    out[2 * p0] += rax;
+    out[2 * p0 + 1] += ray;
+    out[2 * p1] += rbx - rax;
+    out[2 * p1 + 1] += rby - ray;
+    out[2 * p2] -= rbx;
+    out[2 * p2 + 1] -= rby;
   }
 }
 
+// Second derivatives of s = âᵀ M b̂ in the edge vectors (Π_u = I - ûûᵀ, m = M b̂, n = Mᵀ â),
+// from ∂â/∂a = Π_a / a (seed, "Gradient of unit distance vector"):
+//   ds/da = Π_a m / a,   ds/db = Π_b n / b
+//   d2s/da2 = -(Π_a m âᵀ + â mᵀ Π_a + (â·m) Π_a) / a²
+//   d2s/db2 = -(Π_b n b̂ᵀ + b̂ nᵀ Π_b + (b̂·n) Π_b) / b²
+//   d2s/dadb = Π_a M Π_b / (a b)
+// With a = p1 - p0, b = p2 - p1 (da/dp = [-I, I, 0], db/dp = [0, -I, I]) and f = k/2 ds/dp,
+// df_i/dp_j = k/2 Σ D_i D_j H over the (a, b) pairs.
 void Bending::add_dfdx(const StateView& s, Triplets& J) const {
   const Mat2 id = Mat2::Identity();
   for (std::size_t e = 0; e < idx_.size() / 3; ++e) {

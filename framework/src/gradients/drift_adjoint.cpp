@@ -130,6 +130,11 @@ PairJacobian pair_jacobian(const PairHit& hit) {
 void drift_adjoint(const DriftTape& tape, Eigen::Matrix2Xd& gx, Eigen::Matrix2Xd& gv,
                    const std::vector<ImpactSeed>* seeds, MaterialGrad& mg) {
   const auto np = static_cast<std::size_t>(tape.x_in.cols());
+  if (tape.impacts.empty() && tape.pairs.empty()) {  // x' = x + h v, v' = v for the free
+    for (Eigen::Index i = 0; i < static_cast<Eigen::Index>(np); ++i)
+      if (tape.inv_mass[i] > 0.0) gv.col(i) += tape.h * gx.col(i);
+    return;
+  }
   // adjoints of each pair hit's time and velocity changes, per side, from the marches
   std::vector<double> tau_bar(2 * tape.pairs.size(), 0.0);
   std::vector<Vec2> dv_bar(2 * tape.pairs.size(), Vec2::Zero());
