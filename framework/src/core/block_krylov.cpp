@@ -53,21 +53,42 @@ bool BlockSystem::is_symmetric(std::vector<double>& root) const {
 }
 
 void BlockSystem::transpose_into(BlockSystem& out) const {
-  out.a.first = a.first;
-  out.a.col = a.col;
-  out.a.value.resize(a.value.size());
-  out.diag_block = diag_block;
-  out.tblock = tblock;
-  // block k at (i, j) of A^T is the transpose of A's block (j, i), tblock[k]
   const double* in = a.value.data();
+  out.a.value.resize(a.value.size());
   double* o = out.a.value.data();
-  for (std::size_t k = 0; k < tblock.size(); ++k) {
-    const double* b = in + 4 * tblock[k];
-    o[4 * k] = b[0];
-    o[4 * k + 1] = b[2];
-    o[4 * k + 2] = b[1];
-    o[4 * k + 3] = b[3];
+  // block q of A^T holds the transpose of A's block k
+  auto put = [&](std::size_t q, std::size_t k) {
+    const double* b = in + 4 * k;
+    o[4 * q] = b[0];
+    o[4 * q + 1] = b[2];
+    o[4 * q + 2] = b[1];
+    o[4 * q + 3] = b[3];
+  };
+  if (symmetric_pattern()) {  // A's pattern: block k at (i, j) of A^T is A's (j, i)
+    out.a.first = a.first;
+    out.a.col = a.col;
+    out.diag_block = diag_block;
+    out.tblock = tblock;
+    for (std::size_t k = 0; k < tblock.size(); ++k) put(k, static_cast<std::size_t>(tblock[k]));
+    return;
   }
+  // A^T's own pattern: A's blocks by column (rows of A^T), each column's rows in order
+  const int64_t np = a.rows();
+  out.a.first.assign(static_cast<std::size_t>(np) + 1, 0);
+  for (const int32_t j : a.col) ++out.a.first[static_cast<std::size_t>(j) + 1];
+  for (int64_t j = 0; j < np; ++j)
+    out.a.first[static_cast<std::size_t>(j) + 1] += out.a.first[static_cast<std::size_t>(j)];
+  out.a.col.resize(a.col.size());
+  std::vector<int64_t> next(out.a.first.begin(), out.a.first.end() - 1);
+  for (int64_t i = 0; i < np; ++i)
+    for (int64_t k = a.first[static_cast<std::size_t>(i)];
+         k < a.first[static_cast<std::size_t>(i) + 1]; ++k) {
+      const auto q = static_cast<std::size_t>(
+          next[static_cast<std::size_t>(a.col[static_cast<std::size_t>(k)])]++);
+      out.a.col[q] = static_cast<int32_t>(i);
+      put(q, static_cast<std::size_t>(k));
+    }
+  out.index();
 }
 
 void BlockKrylov::resize(int64_t np) {

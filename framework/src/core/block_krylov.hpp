@@ -30,7 +30,8 @@ struct BlockSystem {
   /// every off-diagonal entry (the bound on a_ij alone where the transpose block is missing);
   /// a NaN fails. `root` is scratch storage.
   bool is_symmetric(std::vector<double>& root) const;
-  /// out = A^T in A's pattern (storage reused); requires symmetric_pattern().
+  /// out = A^T (storage reused): in A's own pattern when it holds every block's transpose,
+  /// else in the transposed pattern (out indexed afresh).
   void transpose_into(BlockSystem& out) const;
 };
 

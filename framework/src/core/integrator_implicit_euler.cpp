@@ -537,7 +537,7 @@ class ImplicitEuler : public Integrator, public LinearSystemStep {
   }
 
   bool last_system_transposed(BlockSystem& out, bool& symmetric) const override {
-    if (!solved_ || !sys_.symmetric_pattern()) return false;
+    if (!solved_) return false;
     sys_.transpose_into(out);
     symmetric = solved_symmetric_;
     return true;

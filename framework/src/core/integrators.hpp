@@ -111,7 +111,7 @@ class LinearSystemStep {
  public:
   virtual ~LinearSystemStep() = default;
   /// out = A^T of the last step (storage reused) and whether A was symmetric; false (out
-  /// untouched) when there is none or A's block pattern lacks the transpose of a block.
+  /// untouched) when no step has solved a system yet.
   virtual bool last_system_transposed(BlockSystem& out, bool& symmetric) const = 0;
 };
 /// Extended position-based dynamics with small steps, Macklin, Müller & Chentanez 2016 and

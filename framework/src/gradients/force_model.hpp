@@ -24,9 +24,6 @@ class ForceModel {
                    Eigen::Matrix2Xd& gv) = 0;
   /// gp += (df/dtheta)^T w at s: one entry per differentiated parameter component.
   virtual void param_vjp(const State& s, const Eigen::Matrix2Xd& w, Eigen::VectorXd& gp) = 0;
-  /// K = df/dx and D = df/dv at s, 2N x 2N over dofs 2 * particle + component.
-  virtual void jacobians(const State& s, Eigen::SparseMatrix<double>& K,
-                         Eigen::SparseMatrix<double>& D) = 0;
   /// Whether some force may depend on the velocities (velocity Verlet's predictor runs then).
   virtual bool velocity_dependent() const = 0;
   /// Whether vjp_part and param_vjp_part take a part other than kAll.

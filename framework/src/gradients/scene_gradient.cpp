@@ -378,13 +378,6 @@ class SimulationForces : public ForceModel {
     }
   }
 
-  void jacobians(const State& s, Eigen::SparseMatrix<double>& K,
-                 Eigen::SparseMatrix<double>& D) override {
-    cache(s);
-    K = k_;
-    D = d_;
-  }
-
   bool velocity_dependent() const override {
     for (const auto& f : sim_.forces())
       if (f->velocity_dependent()) return true;

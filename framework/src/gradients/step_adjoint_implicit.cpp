@@ -1,5 +1,4 @@
 // The adjoint step of linearized backward Euler: the transposed solve of its own system.
-#include <Eigen/IterativeLinearSolvers>
 #include <Eigen/SparseLU>
 #include <algorithm>
 #include <cmath>
@@ -12,72 +11,6 @@ namespace pinsim::grad {
 namespace {
 
 using Sparse = Eigen::SparseMatrix<double>;
-
-/// A = M - h D - h^2 K with the pinned dofs' rows and columns replaced by the identity, as
-/// implicit_euler builds it.
-Sparse system_matrix(const State& s, const Sparse& K, const Sparse& D, double h) {
-  const Eigen::Index n = 2 * static_cast<Eigen::Index>(s.size());
-  auto free = [&](Eigen::Index dof) { return s.inv_mass[dof / 2] > 0.0; };
-  std::vector<Eigen::Triplet<double>> t;
-  t.reserve(static_cast<std::size_t>(K.nonZeros() + D.nonZeros() + n));
-  for (Eigen::Index i = 0; i < n; ++i)
-    t.emplace_back(i, i, free(i) ? 1.0 / s.inv_mass[i / 2] : 1.0);
-  auto add = [&](const Sparse& m, double c) {
-    for (Eigen::Index k = 0; k < m.outerSize(); ++k)
-      for (Sparse::InnerIterator it(m, k); it; ++it)
-        if (free(it.row()) && free(it.col())) t.emplace_back(it.row(), it.col(), c * it.value());
-  };
-  add(D, -h);
-  add(K, -h * h);
-  Sparse a(n, n);
-  a.setFromTriplets(t.begin(), t.end());
-  return a;
-}
-
-/// Solves A^T mu = rhs to a relative residual of 1e-13: conjugate gradients when A is
-/// symmetric, BiCGSTAB otherwise (Jacobi-preconditioned, as the forward's solves), sparse LU
-/// if they fail. Throws std::runtime_error if that fails too.
-Eigen::VectorXd transposed_solve(const Sparse& a, const Eigen::VectorXd& rhs, AdjointStats& st) {
-  ++st.solves;
-  const Eigen::VectorXd zero = Eigen::VectorXd::Zero(rhs.size());
-  const double bn = rhs.norm();
-  if (bn == 0.0) return zero;
-  const Sparse at = a.transpose();
-  const double asym = (Sparse(at - a)).norm();
-  const bool symmetric = asym <= 1e-14 * a.norm();
-  Eigen::VectorXd mu;
-  if (symmetric) {
-    Eigen::ConjugateGradient<Sparse, Eigen::Lower | Eigen::Upper> cg;
-    cg.setTolerance(1e-13);
-    cg.setMaxIterations(std::max<Eigen::Index>(100, 4 * rhs.size()));
-    cg.compute(at);
-    mu = cg.solve(rhs);
-    st.solve_iterations += static_cast<uint64_t>(cg.iterations());
-  } else {
-    Eigen::BiCGSTAB<Sparse> bi;
-    bi.setTolerance(1e-13);
-    bi.setMaxIterations(std::max<Eigen::Index>(100, 4 * rhs.size()));
-    bi.compute(at);
-    mu = bi.solve(rhs);
-    st.solve_iterations += static_cast<uint64_t>(bi.iterations());
-  }
-  double res = (at * mu - rhs).norm() / bn;
-  if (!(res <= 1e-12)) {
-    ++st.lu_fallbacks;
-    Eigen::SparseLU<Sparse> lu;
-    lu.compute(at);
-    if (lu.info() != Eigen::Success)
-      throw std::runtime_error("implicit_euler adjoint: the transposed system is singular");
-    mu = lu.solve(rhs);
-    res = (at * mu - rhs).norm() / bn;
-    if (!(res <= 1e-10))
-      throw std::runtime_error(
-          "implicit_euler adjoint: the transposed solve left relative residual " +
-          std::to_string(res));
-  }
-  st.worst_residual = std::max(st.worst_residual, res);
-  return mu;
-}
 
 Eigen::Map<const Eigen::VectorXd> flat(const Eigen::Matrix2Xd& m) { return {m.data(), m.size()}; }
 
@@ -152,24 +85,13 @@ void adjoint_implicit_euler(ForceModel& forces, const StepTape& tape, double h, 
   Eigen::Matrix2Xd lam = a.gv;
   for (Eigen::Index i = 0; i < np; ++i)
     if (!(s0.inv_mass[i] > 0.0)) lam.col(i).setZero();
+  if (!tape.has_system)
+    throw std::logic_error("implicit_euler adjoint: the step record has no system");
   // first order: b = h f + h^2 K v0; kx = h K^T mu, dx = h D^T mu
-  Eigen::Matrix2Xd mu(2, np), kx(2, np), dx(2, np);
-  if (tape.has_system) {
-    Eigen::Map<Eigen::VectorXd>(mu.data(), mu.size()) =
-        transposed_solve(tape.system, tape.symmetric, flat(lam), a.scratch, stats);
-    kx.setZero();
-    dx.setZero();
-    forces.vjp(s0, h * mu, kx, dx);
-  } else {
-    Sparse K, D;
-    forces.jacobians(s0, K, D);
-    const Sparse A = system_matrix(s0, K, D, h);
-    const Eigen::VectorXd mu_flat = transposed_solve(A, flat(lam), stats);
-    mu = Eigen::Map<const Eigen::Matrix2Xd>(mu_flat.data(), 2, np);
-    const Eigen::Matrix2Xd hmu = h * mu;
-    Eigen::Map<Eigen::VectorXd>(kx.data(), kx.size()) = K.transpose() * flat(hmu);
-    Eigen::Map<Eigen::VectorXd>(dx.data(), dx.size()) = D.transpose() * flat(hmu);
-  }
+  Eigen::Matrix2Xd mu(2, np), kx = Eigen::Matrix2Xd::Zero(2, np), dx = kx;
+  Eigen::Map<Eigen::VectorXd>(mu.data(), mu.size()) =
+      transposed_solve(tape.system, tape.symmetric, flat(lam), a.scratch, stats);
+  forces.vjp(s0, h * mu, kx, dx);
   forces.param_vjp(s0, h * mu, a.gp);
   a.gx += kx;
   a.gv += dx + h * kx;
