@@ -31,7 +31,7 @@ struct StepTape {
   Eigen::Matrix2Xd x1, vc, vp;
   bool predicted = false;
   /// Implicit Euler: A^T of the step's system as its replay assembled it (has_system), and
-  /// whether A is symmetric; without it the adjoint assembles A from the Jacobians.
+  /// whether A is symmetric (the adjoint step of implicit Euler requires it).
   BlockSystem system;
   bool has_system = false, symmetric = false;
 };
