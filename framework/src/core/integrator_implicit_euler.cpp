@@ -64,6 +64,7 @@ class ImplicitEuler : public Integrator, public LinearSystemStep {
   explicit ImplicitEuler(const ImplicitEulerOptions& o) : options_(o) {}
 
   Kick before_drift(StepContext& ctx, double h) override {
+    solved_ = false;  // until this step's solve succeeds (a step that throws leaves none)
     State& s = ctx.state();
     ctx.compute_forces(s, f_);
     const Eigen::Index n = 2 * static_cast<Eigen::Index>(s.size());
@@ -93,7 +94,6 @@ class ImplicitEuler : public Integrator, public LinearSystemStep {
     const Eigen::VectorXd& b = b_;
     const bool symmetric = sys_.is_symmetric(root_diag_);
     solved_symmetric_ = symmetric;
-    solved_ = false;
     const Eigen::Index max_iterations = options_.cg_max_iterations > 0
                                             ? options_.cg_max_iterations
                                             : std::max<Eigen::Index>(100, 4 * n);
@@ -568,7 +568,7 @@ class ImplicitEuler : public Integrator, public LinearSystemStep {
   std::vector<JacobianEntries> ex_, ev_;  ///< per force: df/dx, df/dv entries (pattern build)
   Eigen::VectorXd m_, kv_, b_, r_;        ///< masses (0: pinned), K v_n, right side, residual
   // The pattern of A: where each entry goes in A's values and the entries' positions it
-  // was built for (Slots), the free dofs it was built for, each diagonal block's index.
+  // was built for (Slots), the free dofs it was built for.
   std::vector<Slots> px_, pv_;  ///< per force
   /// Per force its group (scatter_groups): 0, or g >= 1 for own_[g - 1].
   std::vector<std::size_t> group_;

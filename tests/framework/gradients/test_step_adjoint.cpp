@@ -251,8 +251,8 @@ void check_scheme(Scheme scheme, double kd, bool dissipative = true) {
   std::vector<StepTape> tapes(steps);
   for (int k = 0; k < steps; ++k)
     ref_step(scheme, fw.f, fw.s, h, &tapes[static_cast<std::size_t>(k)]);
-  // implicit Euler: conjugate gradients for the symmetric A of kd = 0, BiCGSTAB for the
-  // turning damped springs
+  // implicit Euler: both solver paths are exercised, conjugate gradients for the symmetric
+  // A of kd = 0, BiCGSTAB for the turning damped springs (the tapes' flag chooses)
   if (scheme == Scheme::kImplicitEuler) CHECK(tapes[0].symmetric == (kd == 0.0));
   Adjoint adj;
   adj.reset(4, 4);
@@ -290,7 +290,12 @@ void check_scheme(Scheme scheme, double kd, bool dissipative = true) {
     INFO("input " << k << ": adjoint " << got[k] << ", central difference " << want[k]);
     CHECK(std::abs(got[k] - want[k]) <= 1e-7 * scale);
   }
-  if (scheme == Scheme::kImplicitEuler) CHECK(st.solves == static_cast<uint64_t>(steps));
+  if (scheme == Scheme::kImplicitEuler) {
+    CHECK(st.solves == static_cast<uint64_t>(steps));
+    CHECK(st.lu_fallbacks == 0);  // the block solvers, not their LU fallback, gave mu
+    CHECK(st.solve_iterations >= static_cast<uint64_t>(steps));
+    CHECK(st.worst_residual <= 1e-11);
+  }
 }
 
 }  // namespace

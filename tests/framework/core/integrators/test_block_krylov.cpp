@@ -39,12 +39,13 @@ BlockSystem blocks_of(const Eigen::MatrixXd& d, const std::vector<std::pair<int,
 
 Eigen::MatrixXd dense(const BlockSystem& s) { return Eigen::MatrixXd(s.a.to_eigen()); }
 
-/// A random dense matrix zero outside the blocks at `where`, diagonally dominant.
+/// A random dense matrix zero outside the blocks at `where` (entries in [-1, 1]) plus 8 on
+/// the diagonal: strictly diagonally dominant for up to 7 off-diagonal entries a row.
 Eigen::MatrixXd random_blocks(int np, const std::vector<std::pair<int, int>>& where) {
   Eigen::MatrixXd d = Eigen::MatrixXd::Zero(2 * np, 2 * np);
   const Eigen::MatrixXd r = Eigen::MatrixXd::Random(2 * np, 2 * np);
   for (const auto& [i, j] : where) d.block<2, 2>(2 * i, 2 * j) = r.block<2, 2>(2 * i, 2 * j);
-  d.diagonal().array() += 4.0;
+  d.diagonal().array() += 8.0;
   return d;
 }
 
@@ -80,7 +81,7 @@ TEST_CASE("block solvers: conjugate gradients and BiCGSTAB against dense LU") {
   for (int i = 0; i < np; ++i)
     for (int j = std::max(0, i - 1); j <= std::min(np - 1, i + 1); ++j) where.emplace_back(i, j);
   Eigen::MatrixXd nonsym = random_blocks(np, where);
-  const Eigen::MatrixXd spd = 0.5 * (nonsym + nonsym.transpose());  // dominant: positive
+  const Eigen::MatrixXd spd = 0.5 * (nonsym + nonsym.transpose());  // dominant: definite
   const Eigen::VectorXd b = Eigen::VectorXd::Random(2 * np);
   for (const bool symmetric : {true, false}) {
     const Eigen::MatrixXd& d = symmetric ? spd : nonsym;
