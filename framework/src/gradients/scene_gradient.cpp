@@ -560,7 +560,7 @@ Eigen::Matrix2Xd drift_velocities(const DriftTape& d) {
 /// a0 = M^-1 f(x0, v0), c_k = clamp(-(vn_after - vn_before) / vn_before, 1, 2)) and its
 /// closing predictor.
 void fill_tape(Scheme scheme, ForceModel& forces, const State& end, double h, bool recorded,
-               const SeenForces& seen, StepTape& tape) {
+               const SeenForces& seen, StepTape& tape, Eigen::Matrix2Xd& f) {
   const State& start = tape.start;
   DriftTape& d = tape.drift;
   if (!recorded) {
@@ -577,8 +577,8 @@ void fill_tape(Scheme scheme, ForceModel& forces, const State& end, double h, bo
     if (!recorded) d.v_in = end.v;
     return;
   }
-  // the forces at (x0, v0) and (x1, vc): the replay's, or evaluated again
-  Eigen::Matrix2Xd f;
+  // the forces at (x0, v0) and (x1, vc): the replay's, or evaluated again (into f, storage
+  // kept from step to step)
   if (!seen.find(start.t, start.x, start.v, f)) forces.force(start, f);
   if (!recorded) {
     d.v_in = start.v;
@@ -746,6 +746,7 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
   // velocity Verlet's tape needs the forces at the step's start and after its drift, which
   // the replay has just evaluated
   SeenForces seen;
+  Eigen::Matrix2Xd tape_forces;  // fill_tape's scratch
   if (scheme == Scheme::kVelocityVerlet)
     sim.set_force_observer([&seen](const State& s, const Eigen::Matrix2Xd& f) { seen.add(s, f); });
   t0 = Clock::now();
@@ -764,7 +765,7 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
         ++cur;
         sim.state().t = static_cast<double>(cur) * h;
         const bool recorded = recording && recording->began();
-        fill_tape(scheme, model, sim.state(), h, recorded, seen, *tape);
+        fill_tape(scheme, model, sim.state(), h, recorded, seen, *tape, tape_forces);
         tape->has_system =
             linear != nullptr && linear->last_system_transposed(tape->system, tape->symmetric);
         if (tape->has_system)
