@@ -1,9 +1,10 @@
 // bench_gradients: the cost of `pinsim grad`. For scenes with force parameters (or, through
 // the sdf backend's collisions, a material) to differentiate, per number of steps N: the forward
 // pass (Simulation::step, with a checkpoint every S = ceil(sqrt(N)) steps) and the backward pass
-// (each segment replayed, its adjoint steps in reverse) as median wall times over repeats, their
-// ratio, the states held at once (sqrt(N) checkpoints and one segment's step records) against the N
-// a taped run would hold, and the process's peak RSS. Prints CSV, one row per case:
+// (each segment replayed, its adjoint steps in reverse) as median wall times over repeats, the
+// median of each run's ratio of the two, the states held at once (sqrt(N) checkpoints and one
+// segment's step records) against the N a taped run would hold, and the process's peak RSS. Prints
+// CSV, one row per case:
 //   case,integrator,particles,steps,segment,peak_states,taped_states,forward_s,backward_s,
 //   backward_over_forward,peak_state_mb,taped_state_mb,max_rss_mb,gradient0
 // (peak_state_mb, taped_state_mb: the states' bytes, 2 x 2N doubles for x and v plus the
@@ -109,15 +110,18 @@ int main(int argc, char** argv) {
       GradientOptions opt;
       opt.run.integrator = c.integrator;
       opt.run.threads = 1;
-      std::vector<double> fwd, bwd;
+      std::vector<double> fwd, bwd, ratio;
       GradientReport r;
       for (int k = 0; k < repeats; ++k) {
         r = scene_gradient(
             scene, loader, c.wrt, [&](const LossContext& x) { return parse_loss(c.loss, x); }, opt);
         fwd.push_back(r.forward_s);
+        ratio.push_back(r.forward_s > 0 ? r.backward_s / r.forward_s : 0.0);
         bwd.push_back(r.backward_s);
       }
-      const double f = median(fwd), b = median(bwd);
+      // the ratio of each run's own passes (measured one after the other), then the median:
+      // steadier on a shared machine than the ratio of the two medians
+      const double f = median(fwd), b = median(bwd), q = median(ratio);
       const double np = static_cast<double>(scene.initial_state().size());
       // a state: x and v (4 doubles a particle); a step record (StepTape): its start state,
       // the drift's x and v, and velocity Verlet's x1, vc, vp; implicit Euler's also its
@@ -135,8 +139,8 @@ int main(int argc, char** argv) {
                   c.name.c_str(), c.integrator.c_str(), np, static_cast<unsigned long long>(n),
                   static_cast<unsigned long long>(r.segment),
                   static_cast<unsigned long long>(r.peak_states),
-                  static_cast<unsigned long long>(r.steps), f, b, f > 0 ? b / f : 0.0, peak_mb,
-                  taped_mb, max_rss_mb(), g0);
+                  static_cast<unsigned long long>(r.steps), f, b, q, peak_mb, taped_mb,
+                  max_rss_mb(), g0);
       std::fflush(stdout);
       if (!(std::isfinite(f) && std::isfinite(b) && std::isfinite(g0) && r.steps == n)) {
         std::fprintf(stderr, "bench_gradients: %s: non-finite figures or wrong step count\n",
