@@ -93,8 +93,9 @@ void adjoint_implicit_euler(ForceModel& forces, const StepTape& tape, double h, 
   Eigen::Matrix2Xd mu(2, np), kx = Eigen::Matrix2Xd::Zero(2, np), dx = kx;
   Eigen::Map<Eigen::VectorXd>(mu.data(), mu.size()) =
       transposed_solve(tape.system, tape.symmetric, flat(lam), a.scratch, stats);
-  forces.vjp(s0, h * mu, kx, dx);
-  forces.param_vjp(s0, h * mu, a.gp);
+  const Eigen::Matrix2Xd hmu = h * mu;
+  forces.vjp(s0, hmu, kx, dx);
+  forces.param_vjp(s0, hmu, a.gp);
   a.gx += kx;
   a.gv += dx + h * kx;
   // second order, along (a, c) = (h^2 v', h dv)
