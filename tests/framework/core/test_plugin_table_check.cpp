@@ -45,6 +45,15 @@ pinsim_plugin force_table() {
   return t;
 }
 
+/// A backend's table: force_table() turned backend, with advance and no add_force.
+pinsim_plugin backend_table() {
+  pinsim_plugin b = force_table();
+  b.kind = PINSIM_KIND_BACKEND;
+  b.force.add_force = nullptr;
+  b.backend.advance = advance;
+  return b;
+}
+
 /// A table of `size` bytes copied from `t`, in a buffer whose bytes past it are 0xab: what a
 /// reader past struct_size would see (abi_minor there reads 0xabababab).
 struct ShortTable {
@@ -115,10 +124,7 @@ TEST_CASE("table check: consistent force and backend tables pass") {
   t.force.energy = energy;
   t.force.add_jacobians = jacobians;
   CHECK(pinsim::plugin_table_problems(t).empty());
-  pinsim_plugin b = force_table();
-  b.kind = PINSIM_KIND_BACKEND;
-  b.force.add_force = nullptr;
-  b.backend.advance = advance;
+  pinsim_plugin b = backend_table();
   b.capabilities = PINSIM_CAP_DISTANCE | PINSIM_CAP_PARTICLE_CONTACT;
   b.backend.distance = distance;
   CHECK(pinsim::plugin_table_problems(b).empty());
@@ -175,10 +181,7 @@ TEST_CASE("table check: the 4.2 constraint entries go with PINSIM_CAP_CONSTRAINT
   CHECK(r.constraint_set == nullptr);
   CHECK(r.constraints == nullptr);
   // and a backend never has them
-  pinsim_plugin b = force_table();
-  b.kind = PINSIM_KIND_BACKEND;
-  b.force.add_force = nullptr;
-  b.backend.advance = advance;
+  pinsim_plugin b = backend_table();
   b.constraint_set = constraint_set;
   CHECK_THAT(pinsim::plugin_table_problems(b),
              Contains("is a backend but provides the constraint"));
@@ -261,10 +264,7 @@ TEST_CASE("table check: the 4.4 add_dforce_dparam goes with PINSIM_CAP_DPARAM an
   CHECK_THAT(pinsim::table_version_problem(cut.table()),
              Contains("wrong plugin table size: plugin has ABI 4.4"));
   // and a backend never has it
-  pinsim_plugin b = force_table();
-  b.kind = PINSIM_KIND_BACKEND;
-  b.force.add_force = nullptr;
-  b.backend.advance = advance;
+  pinsim_plugin b = backend_table();
   b.add_dforce_dparam = dforce_dparam;
   CHECK_THAT(pinsim::plugin_table_problems(b),
              Contains("is a backend but provides the add_dforce_dparam or add_jacobian_products"));
