@@ -42,7 +42,7 @@ extern "C" {
 /** Major version: changes with every incompatible change (see the top of this file). */
 #define PINSIM_ABI_MAJOR 4u
 /** Minor version: counts the compatible additions within the major. */
-#define PINSIM_ABI_MINOR 4u
+#define PINSIM_ABI_MINOR 5u
 /** The value of pinsim_plugin.abi_version: the major version. */
 #define PINSIM_ABI_VERSION PINSIM_ABI_MAJOR
 
@@ -87,7 +87,10 @@ enum {
   PINSIM_CAP_DIFFERENTIABLE = 1u << 12,
   /** force (4.4): add_jacobian_products() is provided (with PINSIM_CAP_DFDX, and
    *  PINSIM_CAP_DFDV if the force may depend on velocity) */
-  PINSIM_CAP_JACOBIAN_PRODUCTS = 1u << 13
+  PINSIM_CAP_JACOBIAN_PRODUCTS = 1u << 13,
+  /** force (4.5): add_adjoint_products() is provided (with PINSIM_CAP_JACOBIAN_PRODUCTS and
+   *  PINSIM_CAP_DPARAM) */
+  PINSIM_CAP_ADJOINT_PRODUCTS = 1u << 14
 };
 
 /** Declared parameter types. */
@@ -451,6 +454,15 @@ typedef struct pinsim_plugin {
    *  unless PINSIM_CAP_JACOBIAN_PRODUCTS. */
   int (*add_jacobian_products)(void* self, const pinsim_state_view* s, const double* w, double* gx,
                                double* gv, pinsim_error* err);
+  /** 4.5, forces: add_jacobian_products' gx and gv and, in the same pass over the elements,
+   *  gp[j] += w . d f / d theta_j at s for every component theta_j of the parameters flagged
+   *  PINSIM_PARAM_DIFFERENTIABLE, numbered in the table's order (a REAL one slot, a VEC2 two):
+   *  the whole of a force's work in one step of the host's adjoint, its geometry computed once.
+   *  The same numbers, to rounding, as add_jacobian_products and the dot products of w with
+   *  add_dforce_dparam's. gv may be NULL; gp is not. Only reads the instance. NULL unless
+   *  PINSIM_CAP_ADJOINT_PRODUCTS. */
+  int (*add_adjoint_products)(void* self, const pinsim_state_view* s, const double* w, double* gx,
+                              double* gv, double* gp, pinsim_error* err);
 } pinsim_plugin;
 
 /** Length of the smallest table of this major: a 4.0 table, every entry up to `backend`. */

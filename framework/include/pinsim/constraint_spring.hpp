@@ -28,6 +28,8 @@
 // and the derivatives in the two parameters (add_dforce_dparam, for "ks" and "kd" declared
 // .differentiable(), as constraint_spring_params() declares them):
 //   df/dks = -J^T C,   df/dkd = -J^T (J v)
+// with the Jacobians' transposed products (add_jacobian_products) and both in one pass
+// (add_adjoint_products: w . df/dks = -(J w) C, w . df/dkd = -(J w)(J v)).
 #pragma once
 
 #include <algorithm>
@@ -257,23 +259,20 @@ class ConstraintSpring {
   /// g = dC/dp, u = ks g + kd H v and H symmetric: (df/dx)^T w = -u (g.w) - (ks C + kd g.v) H w
   /// and (df/dv)^T w = -kd g (g.w), per element's stencil.
   void add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut* gv) const {
-    if (gv != nullptr && kd_ == 0.0) gv = nullptr;
-    for (std::size_t e = 0; e < count(); ++e) {
-      const Stencil p = gather(s.x, e), vel = gather(s.v, e), we = gather(w, e);
-      Stencil dC;
-      const double c = self().constraint(e, p, dC);
-      const Eigen::Map<const Eigen::Matrix<double, kDofs, 1>> g(dC.data()), vv(vel.data()),
-          wv(we.data());
-      const Hessian h = hessian(e, p);
-      const double gw = g.dot(wv);
-      const double sc = ks_ * c + kd_ * g.dot(vv);
-      const Eigen::Matrix<double, kDofs, 1> r = -(ks_ * g + kd_ * (h * vv)) * gw - sc * (h * wv);
-      for (uint32_t k = 0; k < Arity; ++k) {
-        gx.col(particle(e, k)) += r.template segment<2>(2 * static_cast<int>(k));
-        if (gv != nullptr)
-          gv->col(particle(e, k)) -= kd_ * gw * g.template segment<2>(2 * static_cast<int>(k));
-      }
-    }
+    constraint_products(s, w, gx, gv, nullptr);
+  }
+
+  /// add_jacobian_products and, in the same pass, w . d f / d ks = -sum (g.w) C into gp[0]
+  /// and w . d f / d kd = -sum (g.w) (g.v) into gp[1] (ks and kd declared differentiable, in
+  /// that order, as constraint_spring_params() declares them; a derived class with other
+  /// differentiable parameters defines its own).
+  void add_adjoint_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut* gv,
+                            std::span<double> gp) const {
+    if (gp.size() != 2)
+      throw Error(
+          "add_adjoint_products: ConstraintSpring's fills the slots of ks and kd only; a force "
+          "with other differentiable parameters defines its own");
+    constraint_products(s, w, gx, gv, gp.data());
   }
 
   /// df/dv = -kd J^T J, per element.
@@ -288,6 +287,36 @@ class ConstraintSpring {
   }
 
  protected:
+  /// The products of add_jacobian_products, and with gp the parameters' of
+  /// add_adjoint_products.
+  void constraint_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut* gv,
+                           double* gp) const {
+    if (gv != nullptr && kd_ == 0.0) gv = nullptr;
+    double dks = 0.0, dkd = 0.0;
+    for (std::size_t e = 0; e < count(); ++e) {
+      const Stencil p = gather(s.x, e), vel = gather(s.v, e), we = gather(w, e);
+      Stencil dC;
+      const double c = self().constraint(e, p, dC);
+      const Eigen::Map<const Eigen::Matrix<double, kDofs, 1>> g(dC.data()), vv(vel.data()),
+          wv(we.data());
+      const Hessian h = hessian(e, p);
+      const double gw = g.dot(wv), gdv = g.dot(vv);
+      dks -= gw * c;
+      dkd -= gw * gdv;
+      const double sc = ks_ * c + kd_ * gdv;
+      const Eigen::Matrix<double, kDofs, 1> r = -(ks_ * g + kd_ * (h * vv)) * gw - sc * (h * wv);
+      for (uint32_t k = 0; k < Arity; ++k) {
+        gx.col(particle(e, k)) += r.template segment<2>(2 * static_cast<int>(k));
+        if (gv != nullptr)
+          gv->col(particle(e, k)) -= kd_ * gw * g.template segment<2>(2 * static_cast<int>(k));
+      }
+    }
+    if (gp != nullptr) {
+      gp[0] += dks;
+      gp[1] += dkd;
+    }
+  }
+
   /// Number of elements.
   std::size_t count() const { return idx_.size() / Arity; }
   /// Particle k of element e.

@@ -17,6 +17,12 @@
 //                                                             // -> CAP_JACOBIAN_PRODUCTS
 //     (gx += (df/dx)^T w, and gv += (df/dv)^T w when gv is not null: what `pinsim grad`
 //     takes each step, cheaper than the Jacobians' entries; needs add_dfdx)
+//   void add_adjoint_products(const pinsim::StateView& s, const pinsim::Field& w,
+//                             pinsim::ForceOut& gx, pinsim::ForceOut* gv,
+//                             std::span<double> gp) const;         // -> CAP_ADJOINT_PRODUCTS
+//     (add_jacobian_products and, in the same pass, gp[j] += w . d f / d theta_j for each
+//     differentiable parameter component, declaration order, a vec2 two slots: one call per
+//     step of `pinsim grad` instead of one plus one per parameter; needs both of those)
 //   pinsim::ConstraintSet constraint_set() const;                   // both -> CAP_CONSTRAINTS
 //   void constraints(const double* x, const uint64_t* which, std::size_t count, double* c,
 //                    double* dc) const;
@@ -53,6 +59,7 @@
 #include <cmath>
 #include <cstdint>
 #include <nlohmann/json.hpp>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <string_view>

@@ -165,6 +165,24 @@ void ForceInstance::add_dforce_dparam(const pinsim_state_view& s, uint32_t param
     fail("add_dforce_dparam");
 }
 
+uint32_t ForceInstance::dparam_slot(uint32_t param, uint32_t component) const {
+  const pinsim_plugin& t = *plugin_->table;
+  uint32_t slot = 0;
+  for (uint32_t i = 0; i < param && i < t.n_params; ++i)
+    if (t.params[i].flags & PINSIM_PARAM_DIFFERENTIABLE)
+      slot += t.params[i].type == PINSIM_PARAM_VEC2 ? 2u : 1u;
+  return slot + component;
+}
+
+uint32_t ForceInstance::dparam_slots() const { return dparam_slot(plugin_->table->n_params, 0); }
+
+void ForceInstance::add_adjoint_products(const pinsim_state_view& s, const double* w, double* gx,
+                                         double* gv, double* gp) const {
+  pinsim_error err = make_err(err_);
+  if (plugin_->table->add_adjoint_products(self_, &s, w, gx, gv, gp, &err) != 0)
+    fail("add_adjoint_products");
+}
+
 void ForceInstance::add_jacobian_products(const pinsim_state_view& s, const double* w, double* gx,
                                           double* gv) const {
   pinsim_error err = make_err(err_);

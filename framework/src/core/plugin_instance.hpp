@@ -78,6 +78,21 @@ class ForceInstance {
   /// (pinsim_plugin.add_dforce_dparam). Throws PluginError.
   void add_dforce_dparam(const pinsim_state_view& s, uint32_t param, uint32_t component,
                          double* df) const;
+  /// The plugin gives its Jacobian products and its parameter derivatives' products in one
+  /// call (ABI 4.5, PINSIM_CAP_ADJOINT_PRODUCTS).
+  bool provides_adjoint_products() const {
+    return plugin_->table->add_adjoint_products != nullptr &&
+           has_cap(PINSIM_CAP_ADJOINT_PRODUCTS) && provides_jacobian_products();
+  }
+  /// Where component `component` of differentiable parameter `param` (an index from
+  /// dparam_index) sits in add_adjoint_products' gp, and (dparam_slots) gp's length: the
+  /// flagged parameters' components in the table's order.
+  uint32_t dparam_slot(uint32_t param, uint32_t component) const;
+  uint32_t dparam_slots() const;
+  /// add_jacobian_products at s and gp[j] += w . d f / d theta_j for every differentiable
+  /// component (pinsim_plugin.add_adjoint_products). Throws PluginError.
+  void add_adjoint_products(const pinsim_state_view& s, const double* w, double* gx, double* gv,
+                            double* gp) const;
 
   const LoadedPlugin& plugin() const { return *plugin_; }
   const std::string& context() const { return context_; }

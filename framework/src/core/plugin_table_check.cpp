@@ -19,6 +19,7 @@ constexpr std::size_t kMinorTableEnd[] = {
     offsetof(pinsim_plugin, record_drift) + sizeof(void*),  // 4.3: record_drift
     offsetof(pinsim_plugin, add_jacobian_products) + sizeof(void*),  // 4.4: add_dforce_dparam,
                                                                      // add_jacobian_products
+    offsetof(pinsim_plugin, add_adjoint_products) + sizeof(void*),   // 4.5: add_adjoint_products
 };
 static_assert(std::size(kMinorTableEnd) == PINSIM_ABI_MINOR + 1, "one table end per minor");
 
@@ -168,6 +169,8 @@ pinsim_plugin table_as_read(const pinsim_plugin& t) {
     out.add_dforce_dparam = t.add_dforce_dparam;
     out.add_jacobian_products = t.add_jacobian_products;
   }
+  if (v.minor >= 5 && PINSIM_TABLE_HAS(&t, add_adjoint_products))
+    out.add_adjoint_products = t.add_adjoint_products;
   return out;
 }
 
@@ -200,8 +203,15 @@ std::string plugin_table_problems(const pinsim_plugin& t) {
                  {PINSIM_CAP_DPARAM, "PINSIM_CAP_DPARAM", t.add_dforce_dparam != nullptr,
                   "add_dforce_dparam"},
                  {PINSIM_CAP_JACOBIAN_PRODUCTS, "PINSIM_CAP_JACOBIAN_PRODUCTS",
-                  t.add_jacobian_products != nullptr, "add_jacobian_products"}},
+                  t.add_jacobian_products != nullptr, "add_jacobian_products"},
+                 {PINSIM_CAP_ADJOINT_PRODUCTS, "PINSIM_CAP_ADJOINT_PRODUCTS",
+                  t.add_adjoint_products != nullptr, "add_adjoint_products"}},
                 out);
+    if (t.add_adjoint_products != nullptr &&
+        (t.add_jacobian_products == nullptr || t.add_dforce_dparam == nullptr))
+      out.push_back(
+          "provides the add_adjoint_products function without add_jacobian_products and "
+          "add_dforce_dparam (it fuses those two)");
     if (t.add_jacobian_products != nullptr && !(caps & PINSIM_CAP_DFDX))
       out.push_back(
           "provides the add_jacobian_products function but does not declare "
@@ -216,10 +226,11 @@ std::string plugin_table_problems(const pinsim_plugin& t) {
         out);
     if (t.constraint_set != nullptr || t.constraints != nullptr)
       out.push_back("is a backend but provides the constraint functions of a force");
-    if (t.add_dforce_dparam != nullptr || t.add_jacobian_products != nullptr)
+    if (t.add_dforce_dparam != nullptr || t.add_jacobian_products != nullptr ||
+        t.add_adjoint_products != nullptr)
       out.push_back(
-          "is a backend but provides the add_dforce_dparam or add_jacobian_products function of "
-          "a force");
+          "is a backend but provides the add_dforce_dparam, add_jacobian_products or "
+          "add_adjoint_products function of a force");
     if (t.record_drift != nullptr && !(caps & PINSIM_CAP_DIFFERENTIABLE))
       out.push_back(
           "provides the record_drift function but does not declare "

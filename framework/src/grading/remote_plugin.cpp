@@ -474,12 +474,14 @@ std::shared_ptr<const LoadedPlugin> RemoteWorker::open(const std::string& name, 
     p.arity = in.u32();
     // Live inputs, outlines, constraints, parameter derivatives and Jacobian products are not
     // forwarded over the wire: the proxy never claims them (input, outline, constraint_set,
-    // constraints, add_dforce_dparam and add_jacobian_products stay NULL), so the host refuses
-    // a play session, draws without outlines, runs the force through add_force and forms
-    // products from the Jacobians' entries instead of calling into nothing.
+    // constraints, add_dforce_dparam, add_jacobian_products and add_adjoint_products stay
+    // NULL), so the host refuses a play session, draws without outlines, runs the force
+    // through add_force and forms products from the Jacobians' entries instead of calling
+    // into nothing.
     p.capabilities = in.u32() & ~static_cast<uint32_t>(PINSIM_CAP_INPUTS | PINSIM_CAP_OUTLINES |
                                                        PINSIM_CAP_CONSTRAINTS | PINSIM_CAP_DPARAM |
-                                                       PINSIM_CAP_JACOBIAN_PRODUCTS);
+                                                       PINSIM_CAP_JACOBIAN_PRODUCTS |
+                                                       PINSIM_CAP_ADJOINT_PRODUCTS);
     const bool has_energy = in.u32() != 0, has_jac = in.u32() != 0, has_dist = in.u32() != 0;
     p.name = t->keep(sanitize_text(in.str(256)));
     p.version = t->keep(sanitize_text(in.str(256)));

@@ -118,6 +118,19 @@ class Instance {
     });
     return which == 0 ? gx : gv;
   }
+  /// add_adjoint_products at s (PINSIM_CAP_ADJOINT_PRODUCTS): gx, gv (all zero without
+  /// PINSIM_CAP_DFDV) and gp, `slots` long.
+  void adjoint_products(const Sample& s, const VectorXd& w, bool with_v, uint32_t slots,
+                        VectorXd& gx, VectorXd& gv, VectorXd& gp) const {
+    gx = VectorXd::Zero(w.size());
+    gv = gx;
+    gp = VectorXd::Zero(slots);
+    const pinsim_state_view sv = s.view();
+    call("add_adjoint_products", [&](pinsim_error* e) {
+      return t_->add_adjoint_products(self_, &sv, w.data(), gx.data(), with_v ? gv.data() : nullptr,
+                                      gp.data(), e);
+    });
+  }
   /// Dense df/dx (which = 0) or df/dv (which = 1).
   MatrixXd jacobian(const Sample& s, int which) const {
     const auto m = static_cast<Eigen::Index>(2 * s.n());

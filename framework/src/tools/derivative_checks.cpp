@@ -239,8 +239,7 @@ CheckResult Checker::products_check() {
     const Sample init = rest_state();
     const Sample s = random_state();
     auto inst = make(init);
-    VectorXd w(static_cast<Eigen::Index>(2 * s.n()));
-    for (Eigen::Index j = 0; j < w.size(); ++j) w[j] = uni(-1, 1);
+    const VectorXd w = random_field(s);
     for (int which = 0; which < 2; ++which) {
       if (which == 1 && !(t_->capabilities & PINSIM_CAP_DFDV)) continue;
       const VectorXd want = inst->jacobian(s, which).transpose() * w;
@@ -252,6 +251,69 @@ CheckResult Checker::products_check() {
                  "state " + std::to_string(trial) + ", " + (which == 0 ? "(df/dx)" : "(df/dv)") +
                      "^T w at " + dof_name(j) + ": plugin " + num(got[j], 6) + ", entries " +
                      num(want[j], 6) + "; error " + num(e, 3));
+    }
+  }
+  return r;
+}
+
+// The plugin's fused products (add_adjoint_products) against its separate entries: gx and
+// gv against add_jacobian_products', and gp[j] against w . add_dforce_dparam of the j-th
+// differentiable parameter component (table order), for random w: the same numbers up to
+// rounding (the separate entries are checked by jacobian_products and dparam).
+CheckResult Checker::adjoint_products_check() {
+  CheckResult r{"adjoint_products",
+                "fused products against add_jacobian_products and w . add_dforce_dparam, random w",
+                CheckStatus::Pass,
+                0.0,
+                opt_.identity_tolerance,
+                ""};
+  if (!(t_->capabilities & PINSIM_CAP_ADJOINT_PRODUCTS) || t_->add_adjoint_products == nullptr ||
+      t_->add_jacobian_products == nullptr || t_->add_dforce_dparam == nullptr) {
+    r.status = CheckStatus::Skip;
+    r.detail = "no fused products (PINSIM_CAP_ADJOINT_PRODUCTS not declared)";
+    return r;
+  }
+  const bool with_v = (t_->capabilities & PINSIM_CAP_DFDV) != 0;
+  struct Slot {
+    uint32_t param, component;
+  };
+  std::vector<Slot> slots;
+  for (uint32_t i = 0; i < t_->n_params; ++i)
+    if (t_->params[i].flags & PINSIM_PARAM_DIFFERENTIABLE)
+      for (uint32_t c = 0; c < (t_->params[i].type == PINSIM_PARAM_VEC2 ? 2u : 1u); ++c)
+        slots.push_back({i, c});
+  for (int trial = 0; trial < opt_.trials; ++trial) {
+    const Sample init = rest_state();
+    const Sample s = random_state();
+    auto inst = make(init);
+    const VectorXd w = random_field(s);
+    VectorXd gx, gv, gp;
+    inst->adjoint_products(s, w, with_v, static_cast<uint32_t>(slots.size()), gx, gv, gp);
+    const std::string state = "state " + std::to_string(trial) + ", ";
+    for (int which = 0; which < (with_v ? 2 : 1); ++which) {
+      const VectorXd want = inst->jacobian_product(s, w, which);
+      const VectorXd& got = which == 0 ? gx : gv;
+      Eigen::Index at = 0;
+      const double e = rel(got, want, &at);
+      const Eigen::Index j = at / 1000;
+      keep_worst(r, e, e <= r.tolerance,
+                 state + (which == 0 ? "(df/dx)" : "(df/dv)") + "^T w at " + dof_name(j) +
+                     ": fused " + num(got[j], 6) + ", add_jacobian_products " + num(want[j], 6) +
+                     "; error " + num(e, 3));
+    }
+    for (std::size_t k = 0; k < slots.size(); ++k) {
+      const VectorXd df = inst->dforce_dparam(s, slots[k].param, slots[k].component);
+      const double want = w.dot(df), got = gp[static_cast<Eigen::Index>(k)];
+      // relative to the terms summed, not to the sum alone (which may cancel to ~0)
+      const double scale = w.cwiseAbs().dot(df.cwiseAbs());
+      const double e = scale > 0.0 ? std::abs(got - want) / scale : std::abs(got);
+      const pinsim_param& p = t_->params[slots[k].param];
+      const std::string what =
+          std::string(p.name) +
+          (p.type == PINSIM_PARAM_VEC2 ? (slots[k].component == 0 ? "[0]" : "[1]") : "");
+      keep_worst(r, e, e <= r.tolerance,
+                 state + "w . d f / d " + what + ": fused " + num(got, 6) +
+                     ", w . add_dforce_dparam " + num(want, 6) + "; error " + num(e, 3));
     }
   }
   return r;

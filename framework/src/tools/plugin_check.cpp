@@ -52,6 +52,7 @@ CheckReport Checker::run() {
       {"constraint_gradient", [&] { return constraint_check(2); }},
       {"dparam", [&] { return dparam_check(); }},
       {"jacobian_products", [&] { return products_check(); }},
+      {"adjoint_products", [&] { return adjoint_products_check(); }},
   };
   for (const auto& [name, fn] : checks) {
     if (!opt_.only.empty() && name != opt_.only) continue;
@@ -64,6 +65,9 @@ CheckReport Checker::run() {
     if (opt_.only.empty() && name == "dparam" && !(t_->capabilities & PINSIM_CAP_DPARAM)) continue;
     if (opt_.only.empty() && name == "jacobian_products" &&
         !(t_->capabilities & PINSIM_CAP_JACOBIAN_PRODUCTS))
+      continue;
+    if (opt_.only.empty() && name == "adjoint_products" &&
+        !(t_->capabilities & PINSIM_CAP_ADJOINT_PRODUCTS))
       continue;
     try {
       rep.checks.push_back(fn());

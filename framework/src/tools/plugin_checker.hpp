@@ -47,6 +47,12 @@ class Checker {
  private:
   // --- states -------------------------------------------------------------------------
   double uni(double lo, double hi) { return std::uniform_real_distribution<double>(lo, hi)(rng_); }
+  /// A field over s's particles (2n values) uniform in [-1, 1]: the w of the product checks.
+  VectorXd random_field(const Sample& s) {
+    VectorXd w(static_cast<Eigen::Index>(2 * s.n()));
+    for (Eigen::Index j = 0; j < w.size(); ++j) w[j] = uni(-1, 1);
+    return w;
+  }
 
   /// Random positions in [-1, 1]^2 at least 0.2 apart (or the layout's reference
   /// positions perturbed), random velocities, random masses (or the scene's).
@@ -137,6 +143,7 @@ class Checker {
   CheckResult constraint_check(int which);
   CheckResult dparam_check();
   CheckResult products_check();
+  CheckResult adjoint_products_check();
 
   /// Records a state's error; the reported worst is the worst failing one if any failed.
   static void keep_worst(CheckResult& r, double err, bool ok, const std::string& detail) {

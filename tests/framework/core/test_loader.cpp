@@ -55,11 +55,11 @@ TEST_CASE("loader: wrong ABI version names both versions") {
                       Contains("libfixture_wrong_abi.so") && Contains("wrong plugin ABI version") &&
                           Contains("plugin has " + std::to_string(PINSIM_ABI_VERSION + 41)) &&
                           Contains("expects " + std::to_string(PINSIM_ABI_VERSION)) &&
-                          Contains("this pinsim has ABI 4.4") && Contains("newer pinsim"));
+                          Contains("this pinsim has ABI 4.5") && Contains("newer pinsim"));
 }
 
 TEST_CASE("loader: a plugin built against the previous minor (4.0) loads and runs") {
-  static_assert(PINSIM_ABI_MAJOR == 4 && PINSIM_ABI_MINOR == 4);
+  static_assert(PINSIM_ABI_MAJOR == 4 && PINSIM_ABI_MINOR == 5);
   // The C fixture's table is the 4.0 layout, which ends before abi_minor; the word after it
   // holds 0xdeadbeef, so a loader reading past struct_size would refuse it as ABI 4.3735928559.
   auto p = load_plugin_file(fixtures / "libpinsim_plugin_abi40_push.so");
@@ -99,14 +99,14 @@ TEST_CASE("loader: a table shorter than the smallest of its major is refused") {
           Contains("plugin has ABI 4 and a table of " +
                    std::to_string(PINSIM_ABI_MIN_TABLE_SIZE - sizeof(void*)) + " bytes") &&
           Contains(std::to_string(PINSIM_ABI_MIN_TABLE_SIZE) + " bytes") &&
-          Contains("this pinsim has ABI 4.4") && Contains("rebuild it against this SDK"));
+          Contains("this pinsim has ABI 4.5") && Contains("rebuild it against this SDK"));
 }
 
 TEST_CASE("loader: a plugin built against a newer minor is refused") {
   REQUIRE_THROWS_WITH(load_plugin_file(fixtures / "libfixture_abi_newer_minor.so"),
                       Contains("libfixture_abi_newer_minor.so") &&
-                          Contains("plugin built against ABI 4.5, newer than this pinsim's 4.4") &&
-                          Contains("run it with a pinsim of ABI 4.5 or later"));
+                          Contains("plugin built against ABI 4.6, newer than this pinsim's 4.5") &&
+                          Contains("run it with a pinsim of ABI 4.6 or later"));
 }
 
 TEST_CASE("loader: a plugin built against 4.1 loads without the 4.2 constraint entries") {

@@ -30,6 +30,10 @@ int dforce_dparam(void*, const pinsim_state_view*, uint32_t, uint32_t, double*, 
 int products(void*, const pinsim_state_view*, const double*, double*, double*, pinsim_error*) {
   return 0;
 }
+int adjoint_products(void*, const pinsim_state_view*, const double*, double*, double*, double*,
+                     pinsim_error*) {
+  return 0;
+}
 
 pinsim_plugin force_table() {
   pinsim_plugin t{};
@@ -68,7 +72,7 @@ struct ShortTable {
 
 }  // namespace
 
-TEST_CASE("table version: a table of this SDK states 4.4 and is read whole") {
+TEST_CASE("table version: a table of this SDK states 4.5 and is read whole") {
   const pinsim_plugin t = force_table();
   CHECK(pinsim::table_version(t).major == PINSIM_ABI_MAJOR);
   CHECK(pinsim::table_version(t).minor == PINSIM_ABI_MINOR);
@@ -99,7 +103,7 @@ TEST_CASE("table version: another major, a short table, a newer or a missing min
   t.abi_version = PINSIM_ABI_MAJOR + 1;
   CHECK_THAT(pinsim::table_version_problem(t),
              Contains("wrong plugin ABI version: plugin has 5, this pinsim expects 4") &&
-                 Contains("this pinsim has ABI 4.4 and loads plugins of ABI 4.0 to 4.4") &&
+                 Contains("this pinsim has ABI 4.5 and loads plugins of ABI 4.0 to 4.5") &&
                  Contains("built for a newer pinsim"));
   t.abi_version = PINSIM_ABI_MAJOR - 1;
   CHECK_THAT(pinsim::table_version_problem(t), Contains("plugin has 3, this pinsim expects 4") &&
@@ -111,7 +115,7 @@ TEST_CASE("table version: another major, a short table, a newer or a missing min
   t = force_table();
   t.abi_minor = PINSIM_ABI_MINOR + 1;
   CHECK_THAT(pinsim::table_version_problem(t),
-             Contains("plugin built against ABI 4.5, newer than this pinsim's 4.4"));
+             Contains("plugin built against ABI 4.6, newer than this pinsim's 4.5"));
   t.abi_minor = 0;  // holds abi_minor, but says 4.0
   CHECK_THAT(pinsim::table_version_problem(t),
              Contains("malformed plugin table: it holds abi_minor") && Contains("states minor 0"));
@@ -261,13 +265,14 @@ TEST_CASE("table check: the 4.4 add_dforce_dparam goes with PINSIM_CAP_DPARAM an
   CHECK(pinsim::plugin_table_problems(pinsim::table_as_read(old.table())).empty());
   // a table stating 4.4 must hold it
   ShortTable cut(t, offsetof(pinsim_plugin, record_drift) + sizeof(void*));
+  cut.table().abi_minor = 4;
   CHECK_THAT(pinsim::table_version_problem(cut.table()),
              Contains("wrong plugin table size: plugin has ABI 4.4"));
   // and a backend never has it
   pinsim_plugin b = backend_table();
   b.add_dforce_dparam = dforce_dparam;
   CHECK_THAT(pinsim::plugin_table_problems(b),
-             Contains("is a backend but provides the add_dforce_dparam or add_jacobian_products"));
+             Contains("is a backend but provides the add_dforce_dparam, add_jacobian_products"));
 }
 
 TEST_CASE("table check: the 4.4 add_jacobian_products goes with its flag and the Jacobians") {
@@ -291,4 +296,56 @@ TEST_CASE("table check: the 4.4 add_jacobian_products goes with its flag and the
   CHECK_THAT(pinsim::plugin_table_problems(t),
              Contains("declares PINSIM_CAP_JACOBIAN_PRODUCTS but its add_jacobian_products "
                       "function is NULL"));
+}
+
+TEST_CASE("table check: the 4.5 add_adjoint_products goes with its flag and the two it fuses") {
+  pinsim_param p = {
+      "k",   PINSIM_PARAM_REAL, PINSIM_PARAM_DIFFERENTIABLE, {1, 0}, nullptr, nullptr, 0, HUGE_VAL,
+      "N/m", "stiffness"};
+  pinsim_plugin t = force_table();
+  t.params = &p;
+  t.n_params = 1;
+  t.capabilities = PINSIM_CAP_DFDX | PINSIM_CAP_JACOBIAN_PRODUCTS | PINSIM_CAP_DPARAM |
+                   PINSIM_CAP_ADJOINT_PRODUCTS;
+  t.force.add_jacobians = jacobians;
+  t.add_jacobian_products = products;
+  t.add_dforce_dparam = dforce_dparam;
+  t.add_adjoint_products = adjoint_products;
+  CHECK(pinsim::plugin_table_problems(t).empty());
+  t.capabilities &= ~static_cast<uint32_t>(PINSIM_CAP_ADJOINT_PRODUCTS);
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("provides the add_adjoint_products function but does not declare "
+                      "PINSIM_CAP_ADJOINT_PRODUCTS"));
+  t.capabilities |= PINSIM_CAP_ADJOINT_PRODUCTS;
+  t.add_adjoint_products = nullptr;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("declares PINSIM_CAP_ADJOINT_PRODUCTS but its add_adjoint_products "
+                      "function is NULL"));
+  // it fuses the products and the parameter derivatives: it needs both entries
+  t.add_adjoint_products = adjoint_products;
+  t.capabilities &= ~static_cast<uint32_t>(PINSIM_CAP_JACOBIAN_PRODUCTS);
+  t.add_jacobian_products = nullptr;
+  CHECK_THAT(pinsim::plugin_table_problems(t),
+             Contains("provides the add_adjoint_products function without add_jacobian_products "
+                      "and add_dforce_dparam"));
+  // a 4.4 table is read without it, whatever lies past its end
+  t.capabilities |= PINSIM_CAP_JACOBIAN_PRODUCTS;
+  t.add_jacobian_products = products;
+  ShortTable old(t, offsetof(pinsim_plugin, add_jacobian_products) + sizeof(void*));
+  old.table().abi_minor = 4;
+  old.table().capabilities &= ~static_cast<uint32_t>(PINSIM_CAP_ADJOINT_PRODUCTS);
+  CHECK(pinsim::table_version_problem(old.table()).empty());
+  const pinsim_plugin r = pinsim::table_as_read(old.table());
+  CHECK(r.add_adjoint_products == nullptr);
+  CHECK(r.add_jacobian_products == products);
+  CHECK(pinsim::plugin_table_problems(r).empty());
+  // a table stating 4.5 must hold it
+  ShortTable cut(t, offsetof(pinsim_plugin, add_jacobian_products) + sizeof(void*));
+  CHECK_THAT(pinsim::table_version_problem(cut.table()),
+             Contains("wrong plugin table size: plugin has ABI 4.5"));
+  // and a backend never has it
+  pinsim_plugin b = backend_table();
+  b.add_adjoint_products = adjoint_products;
+  CHECK_THAT(pinsim::plugin_table_problems(b),
+             Contains("add_adjoint_products function of a force"));
 }

@@ -12,6 +12,7 @@
 #include <exception>
 #include <optional>
 #include <pinsim/plugin.hpp>
+#include <span>
 #include <string>
 #include <utility>
 #include <vector>
@@ -79,6 +80,14 @@ concept HasJacobianProducts = requires(const T& t, const StateView& s, const Fie
                                        ForceOut& g) {
   t.add_jacobian_products(s, w, g, &g);
 };
+/// Optional (forces, ABI 4.5): add_adjoint_products(s, w, gx, gv, gp) -> add_adjoint_products
+/// (used with add_jacobian_products and differentiable parameters only); gp a std::span<double>
+/// with one slot per differentiable parameter component, in declaration order.
+template <class T>
+concept HasAdjointProducts = requires(const T& t, const StateView& s, const Field& w, ForceOut& g,
+                                      std::span<double> gp) {
+  t.add_adjoint_products(s, w, g, &g, gp);
+};
 /// Optional: the force as soft constraints (pinsim_constraint_set): both members or neither.
 template <class T>
 concept HasConstraints = requires(const T& t, const double* x, const uint64_t* which,
@@ -132,6 +141,8 @@ struct TableStorage {
   PluginInfo info;
   std::vector<pinsim_param> params;
   pinsim_plugin table{};
+  /// The differentiable parameters' components (add_adjoint_products' gp length).
+  uint32_t dparam_slots = 0;
 };
 
 template <class T>
@@ -270,6 +281,31 @@ const pinsim_plugin* make_table() {
             static_cast<const T*>(self)->add_jacobian_products(StateView(*sv), wf, ox, &ov);
           });
         };
+      }
+      if constexpr (HasAdjointProducts<T> && HasJacobianProducts<T> && HasDfdx<T> && HasDparam<T>) {
+        for (const pinsim_param& p : s.params)
+          if (p.flags & PINSIM_PARAM_DIFFERENTIABLE)
+            s.dparam_slots += p.type == PINSIM_PARAM_VEC2 ? 2 : 1;
+        if (s.dparam_slots > 0) {
+          t.capabilities |= PINSIM_CAP_ADJOINT_PRODUCTS;
+          t.add_adjoint_products = [](void* self, const pinsim_state_view* sv, const double* w,
+                                      double* gx, double* gv, double* gp,
+                                      pinsim_error* err) noexcept {
+            return guarded(err, [&] {
+              const auto n = static_cast<Eigen::Index>(sv->n);
+              const Field wf(w, 2, n);
+              ForceOut ox(gx, 2, n);
+              const std::span<double> g(gp, st.dparam_slots);
+              if (gv == nullptr) {
+                static_cast<const T*>(self)->add_adjoint_products(StateView(*sv), wf, ox, nullptr,
+                                                                  g);
+                return;
+              }
+              ForceOut ov(gv, 2, n);
+              static_cast<const T*>(self)->add_adjoint_products(StateView(*sv), wf, ox, &ov, g);
+            });
+          };
+        }
       }
       if constexpr (HasDfdx<T>) t.capabilities |= PINSIM_CAP_DFDX;
       if constexpr (HasDfdv<T>) t.capabilities |= PINSIM_CAP_DFDV;
