@@ -205,6 +205,18 @@ void Bending::constraints(const double* x, const uint64_t* which, std::size_t n,
 // second derivatives of s = âᵀ M b̂ = cos ψ), in fewer operations.
 void Bending::add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx,
                                     ForceOut*) const {
+  products<false>(s, w, gx, nullptr);
+}
+
+void Bending::add_adjoint_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut*,
+                                   std::span<double> gp) const {
+  if (gp.size() != 1) throw Error("add_adjoint_products: expected 1 slot (k)");
+  products<true>(s, w, gx, gp.data());
+}
+
+template <bool Params>
+void Bending::products(const StateView& s, const Field& w, ForceOut& gx, double* gp) const {
+  double dk = 0.0;
   const double* x = s.x.data();
   const double* wd = w.data();
   double* out = gx.data();
@@ -228,7 +240,9 @@ void Bending::add_jacobian_products(const StateView& s, const Field& w, ForceOut
     const double wbx = wd[2 * p2] - wd[2 * p1], wby = wd[2 * p2 + 1] - wd[2 * p1 + 1];
     // g_a = -a⊥/|a|² = (ay, -ax)/|a|², g_b = b⊥/|b|² = (-by, bx)/|b|²
     const double gax = ay * ia2, gay = -ax * ia2, gbx = -by * ib2, gby = bx * ib2;
-    const double gw = e2 * (gax * wax + gay * way + gbx * wbx + gby * wby);
+    const double gdw = gax * wax + gay * way + gbx * wbx + gby * wby;  // g · D w
+    if constexpr (Params) dk -= 0.5 * (ke_.empty() ? 1.0 : dke_[e]) * sp * gdw;
+    const double gw = e2 * gdw;
     // S(u) v = (R v - 2 u⊥ (u·v)/|u|²)/|u|², R v = (-v_y, v_x), u⊥ = (-u_y, u_x)
     const double qa = 2.0 * (ax * wax + ay * way) * ia2, qb = 2.0 * (bx * wbx + by * wby) * ib2;
     const double sax = (-way + ay * qa) * ia2, say = (wax - ax * qa) * ia2;
@@ -242,6 +256,7 @@ void Bending::add_jacobian_products(const StateView& s, const Field& w, ForceOut
     out[2 * p2] -= rbx;
     out[2 * p2 + 1] -= rby;
   }
+  if constexpr (Params) gp[0] += dk;
 }
 
 // Second derivatives of s = âᵀ M b̂ in the edge vectors (Π_u = I - ûûᵀ, m = M b̂, n = Mᵀ â),

@@ -29,6 +29,10 @@ class Bending {
   /// ga = Haa wa + Hab wb and gb = Hba wa + Hbb wb (the second derivatives of s in the edges,
   /// bending.cpp, applied to vectors, no 2x2 block formed), K w = k/2 (-ga, ga - gb, gb).
   void add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut*) const;
+  /// The same product and, in the same pass, w . d f / d k into gp[0]: f = k/2 d cos ψ / dp,
+  /// so w . df/dk = -1/2 sin ψ (g · D w) per triple (times 1/l when length-scaled).
+  void add_adjoint_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut*,
+                            std::span<double> gp) const;
 
   /// The triples as constraints with E = sum ks/2 C^2 + const (pinsim/abi.h,
   /// pinsim_constraint_set): C = √2 sin(φ/2), φ = θ - θ0, since
@@ -45,6 +49,9 @@ class Bending {
   double rest_angle(std::size_t e) const;
 
  private:
+  /// The product, with w . df/dk into *gp when Params.
+  template <bool Params>
+  void products(const StateView& s, const Field& w, ForceOut& gx, double* gp) const;
   /// f += the force with stiffness k (ke[e] per triple when length-scaled).
   void add_force_with(const StateView& s, ForceOut& f, double k, const double* ke) const;
   template <bool Flat, bool Scaled>

@@ -106,9 +106,22 @@ void DampedSpring::add_jacobians(const StateView& s, Triplets* dx, Triplets* dv)
   }
 }
 
-void DampedSpring::add_jacobian_products(const StateView& s, const Field& wt, ForceOut& gx,
+void DampedSpring::add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx,
                                          ForceOut* gv) const {
+  products<false>(s, w, gx, gv, nullptr);
+}
+
+void DampedSpring::add_adjoint_products(const StateView& s, const Field& w, ForceOut& gx,
+                                        ForceOut* gv, std::span<double> gp) const {
+  if (gp.size() != 2) throw Error("add_adjoint_products: expected 2 slots (ks, kd)");
+  products<true>(s, w, gx, gv, gp.data());
+}
+
+template <bool Params>
+void DampedSpring::products(const StateView& s, const Field& wt, ForceOut& gx, ForceOut* gv,
+                            double* gp) const {
   if (gv != nullptr && kd() == 0.0) gv = nullptr;
+  double dks = 0.0, dkd = 0.0;
   const double* x = s.x.data();
   const double* v = s.v.data();
   const double* w = wt.data();
@@ -125,6 +138,10 @@ void DampedSpring::add_jacobian_products(const StateView& s, const Field& wt, Fo
     const Terms t = terms(ex, ey, i, r - rest_length(e), v[2 * k] - v[2 * l],
                           v[2 * k + 1] - v[2 * l + 1], ks, kd);
     const double nd = ex * dx + ey * dy;
+    if constexpr (Params) {  // f_k = -n (ks (R - L) + kd Ṙ): w.df/dks = -(n·d)(R - L), etc.
+      dks -= nd * (r - rest_length(e));
+      dkd -= nd * (ex * (v[2 * k] - v[2 * l]) + ey * (v[2 * k + 1] - v[2 * l + 1]));
+    }
     const double px = -t.wx * nd - t.sc * (t.bxx * dx + t.bxy * dy);
     const double py = -t.wy * nd - t.sc * (t.bxy * dx + t.byy * dy);
     ox[2 * k] += px;
@@ -138,6 +155,10 @@ void DampedSpring::add_jacobian_products(const StateView& s, const Field& wt, Fo
       ov[2 * l] -= qx;
       ov[2 * l + 1] -= qy;
     }
+  }
+  if constexpr (Params) {
+    gp[0] += dks;
+    gp[1] += dkd;
   }
 }
 

@@ -40,6 +40,10 @@ class DampedSpring : public ConstraintSpring<DampedSpring, 2> {
   /// with d = w_k - w_l, M = -n wᵀ - s B (the (k,k) block), Mᵀ d = -w (n·d) - s B d on p_k and
   /// its negative on p_l; -kd n (n·d) on v_k, its negative on v_l.
   void add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut* gv) const;
+  /// The same products and, in the same pass, w . d f / d ks = -sum (n·d)(R - L) into gp[0]
+  /// and w . d f / d kd = -sum (n·d) Ṙ into gp[1].
+  void add_adjoint_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut* gv,
+                            std::span<double> gp) const;
 
   /// Rest length of element e, scene units.
   double rest_length(std::size_t e) const { return rest_[e]; }
@@ -48,6 +52,9 @@ class DampedSpring : public ConstraintSpring<DampedSpring, 2> {
   static constexpr double kMinLength = 1e-100;
 
  private:
+  /// The products, with the parameter derivatives' into gp when Params.
+  template <bool Params>
+  void products(const StateView& s, const Field& w, ForceOut& gx, ForceOut* gv, double* gp) const;
   /// One spring's B = (I - n nᵀ)/R (bxx, bxy, byy), s = ks (R - L) + kd Ṙ and
   /// w = ks n + kd B u: what its df/dx block M = -n wᵀ - s B is made of (add_jacobians and
   /// add_jacobian_products).

@@ -45,6 +45,9 @@ const std::initializer_list<const char*> kInternal = {
 const std::initializer_list<const char*> kDamped = {
     "gradient",         "dfdx",       "dfdv",        "momentum", "angular_momentum",
     "rigid_invariance", "degenerate", "dissipation", "dparam",   "jacobian_products"};
+/// The forces that give both in one call (ABI 4.5) also run adjoint_products.
+const std::initializer_list<const char*> kFused = {"dparam", "jacobian_products",
+                                                   "adjoint_products"};
 
 /// The named check was skipped (the plugin does not claim what it checks).
 void require_skip(const pinsim::CheckReport& r, const std::string& name) {
@@ -183,6 +186,25 @@ TEST_CASE("Jacobian products: wrong ones fail, against the plugin's own entries"
   CHECK(check("area_pressure").find("jacobian_products") == nullptr);
   require_pass(check("damped_spring", {{"kd", 0.0}}), {"jacobian_products"});
   require_pass(check("gravity", {{"mode", "pairwise"}, {"alpha", 0.5}}), {"jacobian_products"});
+}
+
+TEST_CASE("fused products: a wrong one fails, against the plugin's separate entries") {
+  // w . d f / d k with its sign flipped: |-y - y| / (sum of the terms' sizes) >= 2 |y| / ...
+  const auto r = check_fixture("libfixture_wrong_adjoint_products.so");
+  require_fail(r, "adjoint_products");
+  CHECK(r.find("dparam")->status == pinsim::CheckStatus::Pass);
+  CHECK(r.find("jacobian_products")->status == pinsim::CheckStatus::Pass);
+  CHECK(r.find("adjoint_products")->worst > 1e-3);
+  CHECK(r.find("adjoint_products")->detail.find("w . d f / d k") != std::string::npos);
+  // the shipped fused ones: damped_spring's and bending's own, ConstraintSpring's generic one
+  require_pass(check("damped_spring"), kFused);
+  require_pass(check("damped_spring", {{"kd", 0.0}, {"rest_length", 0.0}}), kFused);
+  require_pass(check("bending"), kFused);
+  require_pass(check("bending", {{"shape", "angle"}, {"rest_angle", 1.0}}), kFused);
+  require_pass(check("bending", {{"shape", "initial"}, {"length_scaled", true}}), kFused);
+  require_pass(check_fixture("libfixture_cs_triangle_area.so"), kFused);
+  // a plugin without the entry is not one check short
+  CHECK(check("linear_spring").find("adjoint_products") == nullptr);
 }
 
 TEST_CASE("fixture that divides by zero at a degenerate state fails the degenerate check") {
