@@ -42,6 +42,13 @@ class ForceModel {
       throw std::logic_error("ForceModel: param_vjp_part of a model that does not split");
     param_vjp(s, w, gp);
   }
+  /// vjp_part and param_vjp_part at the same s and w, in one call: a model whose forces give
+  /// both in one pass over their elements overrides it.
+  virtual void vjp_with_params(Part part, const State& s, const Eigen::Matrix2Xd& w,
+                               Eigen::Matrix2Xd& gx, Eigen::Matrix2Xd& gv, Eigen::VectorXd& gp) {
+    vjp_part(part, s, w, gx, gv);
+    param_vjp_part(part, s, w, gp);
+  }
   /// gp += d/dtheta [w^T (K a + D c)] at s: the Jacobian products' derivatives in the
   /// parameters along the directions a (of x) and c (of v). By default the directional
   /// derivative d/deps [(df/dtheta)(x + eps a, v + eps c)^T w] by central differences of

@@ -261,6 +261,7 @@ class SimulationForces : public ForceModel {
         ++slots_;
       }
     }
+    plan_fused_products();
   }
 
   /// Number of parameter components (gp's size).
@@ -274,6 +275,8 @@ class SimulationForces : public ForceModel {
   uint64_t extra_force_evals() const { return extra_evals_; }
   /// Calls of a plugin's add_dforce_dparam.
   uint64_t dparam_evals() const { return dparam_evals_; }
+  /// Calls of a plugin's add_adjoint_products.
+  uint64_t fused_evals() const { return fused_evals_; }
   /// Whether resolved value w's parameter derivative comes from its plugin.
   bool from_plugin(std::size_t w) const {
     for (const Entry& e : entries_)
@@ -311,44 +314,40 @@ class SimulationForces : public ForceModel {
     // the plugins' products (ABI 4.4), or their entries straight into the products, no
     // matrix assembled; a force that depends on the positions only has df/dv = 0
     const pinsim_state_view view = s.view();
-    TransposedProduct px{w.data(), gx.data()}, pv{w.data(), gv.data()};
-    const pinsim_triplet_sink sx = px.sink(), sv = pv.sink();
-    for (const auto& f : sim_.forces()) {
-      if (!in_part(*f, part)) continue;
-      const bool with_v = f->provides_dfdv() && part != Part::kPositionOnly;
-      if (f->provides_jacobian_products())
-        f->add_jacobian_products(view, w.data(), gx.data(), with_v ? gv.data() : nullptr);
-      else
-        f->add_jacobians(view, &sx, with_v ? &sv : nullptr);
-    }
+    for (const auto& f : sim_.forces())
+      if (in_part(*f, part)) product(*f, part, view, w, gx, gv);
   }
 
   void param_vjp_part(Part part, const State& s, const Eigen::Matrix2Xd& w,
                       Eigen::VectorXd& gp) override {
-    if (entries_.empty()) return;
+    param_products(part, s, w, gp, false);
+  }
+
+  /// With every force's Jacobians from its plugin: a force that gives its products and its
+  /// parameters' in one call (ABI 4.5) makes one call for both.
+  void vjp_with_params(Part part, const State& s, const Eigen::Matrix2Xd& w, Eigen::Matrix2Xd& gx,
+                       Eigen::Matrix2Xd& gv, Eigen::VectorXd& gp) override {
+    if (!all_exact_ || fused_slots_.empty()) {
+      ForceModel::vjp_with_params(part, s, w, gx, gv, gp);
+      return;
+    }
     const pinsim_state_view view = s.view();
-    Eigen::Matrix2Xd& fp = fp_;
-    Eigen::Matrix2Xd& fm = fm_;
-    for (const Entry& e : entries_) {
-      if (!in_part(*sim_.forces()[e.force], part)) continue;
-      fp.setZero(2, s.x.cols());
-      if (e.dparam >= 0) {  // the plugin's own derivative
-        sim_.forces()[e.force]->add_dforce_dparam(view, static_cast<uint32_t>(e.dparam),
-                                                  e.component, fp.data());
-        ++dparam_evals_;
-        gp[e.slot] += w.cwiseProduct(fp).sum();
+    for (std::size_t i = 0; i < sim_.forces().size(); ++i) {
+      const ForceInstance& f = *sim_.forces()[i];
+      if (!in_part(f, part)) continue;
+      if (fused_slots_[i] == 0) {
+        product(f, part, view, w, gx, gv);
         continue;
       }
-      fm.setZero(2, s.x.cols());
-      e.plus->add_force(view, fp.data());
-      if (e.minus) {
-        e.minus->add_force(view, fm.data());
-      } else {
-        sim_.forces()[e.force]->add_force(view, fm.data());
-      }
-      extra_evals_ += 2;
-      gp[e.slot] += (w.cwiseProduct(fp - fm)).sum() / e.denominator;
+      const bool with_v = f.provides_dfdv() && part != Part::kPositionOnly;
+      fused_gp_.assign(fused_slots_[i], 0.0);
+      f.add_adjoint_products(view, w.data(), gx.data(), with_v ? gv.data() : nullptr,
+                             fused_gp_.data());
+      for (const Entry& e : entries_)
+        if (e.force == i) gp[e.slot] += fused_gp_[e.fused_slot];
+      ++fused_evals_;
     }
+    param_products(part, s, w, gp, true);
   }
 
   /// With every differenced instance's Jacobians from its plugin: one central difference in
@@ -385,6 +384,52 @@ class SimulationForces : public ForceModel {
   }
 
  private:
+  /// gx += (df/dx)^T w, and gv += (df/dv)^T w unless `part` is the position-only forces', of
+  /// force f: its plugin's products, or its entries straight into the products (no matrix
+  /// assembled).
+  static void product(const ForceInstance& f, Part part, const pinsim_state_view& view,
+                      const Eigen::Matrix2Xd& w, Eigen::Matrix2Xd& gx, Eigen::Matrix2Xd& gv) {
+    const bool with_v = f.provides_dfdv() && part != Part::kPositionOnly;
+    if (f.provides_jacobian_products()) {
+      f.add_jacobian_products(view, w.data(), gx.data(), with_v ? gv.data() : nullptr);
+      return;
+    }
+    TransposedProduct px{w.data(), gx.data()}, pv{w.data(), gv.data()};
+    const pinsim_triplet_sink sx = px.sink(), sv = pv.sink();
+    f.add_jacobians(view, &sx, with_v ? &sv : nullptr);
+  }
+
+  /// gp += (df/dtheta)^T w over the entries of `part`'s forces (skip_fused: but those of the
+  /// forces whose products gave them).
+  void param_products(Part part, const State& s, const Eigen::Matrix2Xd& w, Eigen::VectorXd& gp,
+                      bool skip_fused) {
+    if (entries_.empty()) return;
+    const pinsim_state_view view = s.view();
+    Eigen::Matrix2Xd& fp = fp_;
+    Eigen::Matrix2Xd& fm = fm_;
+    for (const Entry& e : entries_) {
+      if (!in_part(*sim_.forces()[e.force], part)) continue;
+      if (skip_fused && fused_slots_[e.force] > 0) continue;  // vjp_with_params made it
+      fp.setZero(2, s.x.cols());
+      if (e.dparam >= 0) {  // the plugin's own derivative
+        sim_.forces()[e.force]->add_dforce_dparam(view, static_cast<uint32_t>(e.dparam),
+                                                  e.component, fp.data());
+        ++dparam_evals_;
+        gp[e.slot] += w.cwiseProduct(fp).sum();
+        continue;
+      }
+      fm.setZero(2, s.x.cols());
+      e.plus->add_force(view, fp.data());
+      if (e.minus) {
+        e.minus->add_force(view, fm.data());
+      } else {
+        sim_.forces()[e.force]->add_force(view, fm.data());
+      }
+      extra_evals_ += 2;
+      gp[e.slot] += (w.cwiseProduct(fp - fm)).sum() / e.denominator;
+    }
+  }
+
   /// One force instance moved in one parameter component; `minus` null: the force itself
   /// (a one-sided difference).
   struct Entry {
@@ -395,7 +440,33 @@ class SimulationForces : public ForceModel {
     double denominator = 1.0;
     int64_t dparam = -1;  ///< the plugin's parameter index when it gives the derivative
     uint32_t component = 0;
+    uint32_t fused_slot = 0;  ///< its slot in the force's add_adjoint_products gp
   };
+
+  /// A force whose every differentiated value is a parameter its plugin differentiates, and
+  /// which gives those derivatives' products with its Jacobians' (ABI 4.5), makes one call a
+  /// product (vjp_with_params); fused_slots_ stays empty when no force does.
+  void plan_fused_products() {
+    std::vector<uint32_t> fused(sim_.forces().size(), 0);
+    bool any = false;
+    for (std::size_t i = 0; i < fused.size(); ++i) {
+      const ForceInstance& f = *sim_.forces()[i];
+      if (!f.provides_adjoint_products()) continue;
+      bool taken = false, from_plugin = true;
+      for (const Entry& e : entries_)
+        if (e.force == i) {
+          taken = true;
+          from_plugin = from_plugin && e.dparam >= 0;
+        }
+      if (!taken || !from_plugin) continue;
+      for (Entry& e : entries_)
+        if (e.force == i)
+          e.fused_slot = f.dparam_slot(static_cast<uint32_t>(e.dparam), e.component);
+      fused[i] = f.dparam_slots();
+      any = true;
+    }
+    if (any) fused_slots_ = std::move(fused);
+  }
 
   static bool in_part(const ForceInstance& f, Part part) {
     return part == Part::kAll || f.velocity_dependent() == (part == Part::kVelocityDependent);
@@ -497,6 +568,10 @@ class SimulationForces : public ForceModel {
   Simulation& sim_;
   bool plugin_derivatives_ = true;
   Eigen::Matrix2Xd fp_, fm_;  ///< param_vjp's forces, kept between calls
+  /// Per force: its add_adjoint_products' gp length when its products give its parameters'
+  /// (0: separate calls); empty when no force's do.
+  std::vector<uint32_t> fused_slots_;
+  std::vector<double> fused_gp_;
   /// Every force gives its Jacobians (df/dv too where it may depend on v).
   bool all_exact_ = true;
   std::vector<Entry> entries_;
@@ -504,6 +579,7 @@ class SimulationForces : public ForceModel {
   Eigen::Index slots_ = 0;
   uint64_t extra_evals_ = 0;
   uint64_t dparam_evals_ = 0;
+  uint64_t fused_evals_ = 0;
   Eigen::SparseMatrix<double> k_, d_;
   uint64_t hash_ = 0;
   bool have_ = false;
@@ -802,6 +878,7 @@ GradientReport scene_gradient(const Scene& scene, PluginLoader& loader,
   r.backward_force_evals = sim.force_evaluations() - evals1 + model.extra_force_evals();
   r.jacobian_evals = sim.jacobian_evaluations() - jac1;
   r.dparam_evals = model.dparam_evals();
+  r.fused_evals = model.fused_evals();
   if (!(r.replay_deviation <= kReplayTolerance))
     throw std::runtime_error(scene.label + ": the replay of a checkpointed segment left the " +
                              "forward run by " + num(r.replay_deviation) +
@@ -900,6 +977,7 @@ nlohmann::json GradientReport::to_json() const {
         {"backward_force_evaluations", backward_force_evals},
         {"backward_jacobian_evaluations", jacobian_evals},
         {"parameter_derivative_evaluations", dparam_evals},
+        {"fused_product_evaluations", fused_evals},
         {"transposed_solves", stats.solves},
         {"worst_solve_residual", stats.worst_residual}}},
   };
@@ -914,7 +992,8 @@ nlohmann::json GradientReport::to_json() const {
     if (plugin)
       d["plugin"] =
           "the force plugin's add_dforce_dparam: d f / d theta at the step's state (check-plugin "
-          "compares it with central differences)";
+          "compares it with central differences), or its add_adjoint_products: w . d f / d "
+          "theta with the Jacobian products in one pass (check-plugin compares the two)";
     if (differences) {
       d["relative_step"] = rel_eps;
       d["formula"] =

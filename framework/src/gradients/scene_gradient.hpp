@@ -88,6 +88,7 @@ struct GradientReport {
   uint64_t forward_force_evals = 0, backward_force_evals = 0;  ///< force sums over all forces
   uint64_t jacobian_evals = 0;                                 ///< Jacobian assemblies (backward)
   uint64_t dparam_evals = 0;  ///< calls of the plugins' add_dforce_dparam (backward)
+  uint64_t fused_evals = 0;   ///< calls of the plugins' add_adjoint_products (backward)
   AdjointStats stats;
   uint64_t state_hash = 0;  ///< of the final state: the one `pinsim run` reaches
   double rel_eps = 0.0;     ///< of the parameter derivatives

@@ -29,8 +29,7 @@ void flush_pending(ForceModel& forces, Adjoint& a, Eigen::Matrix2Xd& gx) {
   if (!a.pending) return;
   Eigen::Matrix2Xd& unused = a.scratch.unused;
   unused.setZero(2, a.pending_w.cols());
-  forces.vjp_part(Part::kPositionOnly, a.pending_at, a.pending_w, gx, unused);
-  forces.param_vjp_part(Part::kPositionOnly, a.pending_at, a.pending_w, a.gp);
+  forces.vjp_with_params(Part::kPositionOnly, a.pending_at, a.pending_w, gx, unused, a.gp);
   a.pending = false;
 }
 
@@ -69,8 +68,7 @@ void adjoint_symplectic_euler(ForceModel& forces, const StepTape& tape, double h
   // the kick: a.gv is v' 's adjoint, and v0 passes through the kick unchanged
   Eigen::Matrix2Xd& w = a.scratch.w;
   scaled_by_inv_mass(tape.start, a.gv, h, w);
-  forces.vjp(tape.start, w, a.gx, a.gv);
-  forces.param_vjp(tape.start, w, a.gp);
+  forces.vjp_with_params(Part::kAll, tape.start, w, a.gx, a.gv, a.gp);
 }
 
 // Forward (integrator_verlet.cpp, correct_impacts in impact_correction.cpp):
@@ -103,8 +101,7 @@ void adjoint_velocity_verlet(ForceModel& forces, const StepTape& tape, double h,
   // the adjoint of a kick v' = v + h/2 M^-1 f(s), given v' 's adjoint vbar
   auto kick = [&](const State& s, const Eigen::Matrix2Xd& vbar, Eigen::Matrix2Xd& gv_out) {
     scaled_by_inv_mass(s, vbar, 0.5 * h, w);
-    forces.vjp_part(kick_part, s, w, gx1, gv_out);
-    forces.param_vjp_part(kick_part, s, w, a.gp);
+    forces.vjp_with_params(kick_part, s, w, gx1, gv_out, a.gp);
     if (split) w_pos += w;
   };
   if (tape.predicted) {
@@ -123,8 +120,7 @@ void adjoint_velocity_verlet(ForceModel& forces, const StepTape& tape, double h,
       w_pos += a.pending_w;
       a.pending = false;
     }
-    forces.vjp_part(Part::kPositionOnly, s1, w_pos, gx1, vc_bar);
-    forces.param_vjp_part(Part::kPositionOnly, s1, w_pos, a.gp);
+    forces.vjp_with_params(Part::kPositionOnly, s1, w_pos, gx1, vc_bar, a.gp);
   }
   // the impact correction: vd passes, the impacts' own values and a0 get adjoints
   const DriftTape& d = tape.drift;
@@ -173,8 +169,7 @@ void adjoint_velocity_verlet(ForceModel& forces, const StepTape& tape, double h,
   w.resize(2, np);
   for (Eigen::Index i = 0; i < np; ++i)
     w.col(i) = (0.5 * h * s0.inv_mass[i]) * vc_bar.col(i) + (1.0 * s0.inv_mass[i]) * a0_bar.col(i);
-  forces.vjp_part(kick_part, s0, w, a.gx, a.gv);
-  forces.param_vjp_part(kick_part, s0, w, a.gp);
+  forces.vjp_with_params(kick_part, s0, w, a.gx, a.gv, a.gp);
   if (split) {  // the position-only forces' part: with the earlier step's kicks at x0
     a.pending_w = w;
     a.pending_at = s0;

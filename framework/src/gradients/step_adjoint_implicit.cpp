@@ -94,8 +94,7 @@ void adjoint_implicit_euler(ForceModel& forces, const StepTape& tape, double h, 
   Eigen::Map<Eigen::VectorXd>(mu.data(), mu.size()) =
       transposed_solve(tape.system, tape.symmetric, flat(lam), a.scratch, stats);
   const Eigen::Matrix2Xd hmu = h * mu;
-  forces.vjp(s0, hmu, kx, dx);
-  forces.param_vjp(s0, hmu, a.gp);
+  forces.vjp_with_params(ForceModel::Part::kAll, s0, hmu, kx, dx, a.gp);
   a.gx += kx;
   a.gv += dx + h * kx;
   // second order, along (a, c) = (h^2 v', h dv)

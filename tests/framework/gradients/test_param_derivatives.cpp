@@ -1,6 +1,6 @@
 // A force's derivatives in its parameters through a whole run: from the plugin's
-// add_dforce_dparam (ABI 4.4) where it gives them, by central differences of the plugin
-// otherwise, and the two against each other and against whole runs.
+// add_dforce_dparam (ABI 4.4) or add_adjoint_products (4.5) where it gives them, by central
+// differences of the plugin otherwise, and the two against each other and against whole runs.
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <nlohmann/json.hpp>
@@ -83,9 +83,13 @@ TEST_CASE("parameter derivatives: the plugins' and central differences agree",
     CHECK(ja["paths"]["forces[1].params.kd"]["parameter derivative"] == "plugin");
     CHECK(jb["parameter derivative"]["method"] == "finite differences");
     CHECK(jb["paths"]["forces[1].params.kd"]["parameter derivative"] == "finite differences");
-    // the plugins' derivatives cost no force evaluations; the differences two per component
+    // the plugins' derivatives cost no force evaluations; the differences two per component.
+    // damped_spring gives its ks and kd with its Jacobian products in one call (ABI 4.5
+    // add_adjoint_products), gravity its g alone (add_dforce_dparam)
     CHECK(ja["cost"]["parameter_derivative_evaluations"].get<uint64_t>() > 0);
+    CHECK(ja["cost"]["fused_product_evaluations"].get<uint64_t>() > 0);
     CHECK(jb["cost"]["parameter_derivative_evaluations"] == 0);
+    CHECK(jb["cost"]["fused_product_evaluations"] == 0);
     CHECK(a.backward_force_evals < b.backward_force_evals);
   }
 }
