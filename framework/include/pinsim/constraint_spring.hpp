@@ -37,6 +37,7 @@
 #include <pinsim/parallel.hpp>
 #include <pinsim/plugin.hpp>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 namespace pinsim {
@@ -259,20 +260,36 @@ class ConstraintSpring {
   /// g = dC/dp, u = ks g + kd H v and H symmetric: (df/dx)^T w = -u (g.w) - (ks C + kd g.v) H w
   /// and (df/dv)^T w = -kd g (g.w), per element's stencil.
   void add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut* gv) const {
-    constraint_products(s, w, gx, gv, nullptr);
+    constraint_products(s, w, &gx, gv, nullptr);
   }
 
-  /// add_jacobian_products and, in the same pass, w . d f / d ks = -sum (g.w) C into gp[0]
-  /// and w . d f / d kd = -sum (g.w) (g.v) into gp[1] (ks and kd declared differentiable, in
-  /// that order, as constraint_spring_params() declares them; a derived class with other
-  /// differentiable parameters defines its own).
+  /// add_jacobian_products and, in the same pass, w . d f / d ks = -sum (g.w) C and
+  /// w . d f / d kd = -sum (g.w) (g.v) into their slots, found by name among the derived
+  /// class's differentiable parameters; any other differentiable parameter's from its
+  /// add_dforce_dparam. A derived class with its own add_jacobian_products gets that one, and
+  /// the parameters' sums from a pass of their own.
   void add_adjoint_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut* gv,
                             std::span<double> gp) const {
-    if (gp.size() != 2)
-      throw Error(
-          "add_adjoint_products: ConstraintSpring's fills the slots of ks and kd only; a force "
-          "with other differentiable parameters defines its own");
-    constraint_products(s, w, gx, gv, gp.data());
+    const FusedSlots& f = fused_slots();
+    if (gp.size() != f.total)
+      throw Error("add_adjoint_products: " + std::to_string(gp.size()) + " slots given, " +
+                  std::to_string(f.total) + " differentiable parameter components declared");
+    double two[2] = {0.0, 0.0};
+    if constexpr (std::is_same_v<decltype(&Derived::add_jacobian_products),
+                                 decltype(&ConstraintSpring::add_jacobian_products)>) {
+      constraint_products(s, w, &gx, gv, two);
+    } else {
+      self().add_jacobian_products(s, w, gx, gv);
+      constraint_products(s, w, nullptr, nullptr, two);
+    }
+    if (f.ks >= 0) gp[static_cast<std::size_t>(f.ks)] += two[0];
+    if (f.kd >= 0) gp[static_cast<std::size_t>(f.kd)] += two[1];
+    for (const auto& o : f.others) {
+      Eigen::Matrix2Xd df = Eigen::Matrix2Xd::Zero(2, w.cols());
+      ForceOut out(df.data(), 2, w.cols());
+      self().add_dforce_dparam(s, o.name, o.component, out);
+      gp[o.slot] += w.cwiseProduct(df).sum();
+    }
   }
 
   /// df/dv = -kd J^T J, per element.
@@ -287,11 +304,43 @@ class ConstraintSpring {
   }
 
  protected:
-  /// The products of add_jacobian_products, and with gp the parameters' of
-  /// add_adjoint_products.
-  void constraint_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut* gv,
+  /// Where ks and kd sit among the derived class's differentiable parameter components
+  /// (declaration order, a vec2 two; -1 when not declared differentiable), and the others.
+  struct FusedSlots {
+    struct Other {
+      std::string name;
+      int component;
+      std::size_t slot;
+    };
+    int ks = -1, kd = -1;
+    std::vector<Other> others;
+    std::size_t total = 0;
+  };
+  static const FusedSlots& fused_slots() {
+    static const FusedSlots slots = [] {
+      FusedSlots f;
+      for (const ParamDecl& p : Derived::info().params) {
+        if (!(p.flags & PINSIM_PARAM_DIFFERENTIABLE)) continue;
+        const int comps = p.type == PINSIM_PARAM_VEC2 ? 2 : 1;
+        for (int c = 0; c < comps; ++c, ++f.total) {
+          if (comps == 1 && p.name == "ks")
+            f.ks = static_cast<int>(f.total);
+          else if (comps == 1 && p.name == "kd")
+            f.kd = static_cast<int>(f.total);
+          else
+            f.others.push_back({p.name, c, f.total});
+        }
+      }
+      return f;
+    }();
+    return slots;
+  }
+
+  /// The products of add_jacobian_products (unless gx is null), and with gp the sums
+  /// w . d f / d ks, w . d f / d kd into gp[0], gp[1].
+  void constraint_products(const StateView& s, const Field& w, ForceOut* gx, ForceOut* gv,
                            double* gp) const {
-    if (gv != nullptr && kd_ == 0.0) gv = nullptr;
+    if (gx == nullptr || (gv != nullptr && kd_ == 0.0)) gv = nullptr;
     double dks = 0.0, dkd = 0.0;
     for (std::size_t e = 0; e < count(); ++e) {
       const Stencil p = gather(s.x, e), vel = gather(s.v, e), we = gather(w, e);
@@ -299,14 +348,15 @@ class ConstraintSpring {
       const double c = self().constraint(e, p, dC);
       const Eigen::Map<const Eigen::Matrix<double, kDofs, 1>> g(dC.data()), vv(vel.data()),
           wv(we.data());
-      const Hessian h = hessian(e, p);
       const double gw = g.dot(wv), gdv = g.dot(vv);
       dks -= gw * c;
       dkd -= gw * gdv;
+      if (gx == nullptr) continue;
+      const Hessian h = hessian(e, p);
       const double sc = ks_ * c + kd_ * gdv;
       const Eigen::Matrix<double, kDofs, 1> r = -(ks_ * g + kd_ * (h * vv)) * gw - sc * (h * wv);
       for (uint32_t k = 0; k < Arity; ++k) {
-        gx.col(particle(e, k)) += r.template segment<2>(2 * static_cast<int>(k));
+        gx->col(particle(e, k)) += r.template segment<2>(2 * static_cast<int>(k));
         if (gv != nullptr)
           gv->col(particle(e, k)) -= kd_ * gw * g.template segment<2>(2 * static_cast<int>(k));
       }

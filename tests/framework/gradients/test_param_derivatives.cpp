@@ -46,6 +46,23 @@ const char* kPressureBlob = R"({
   ]
 })";
 
+// Three particles, a damped spring on each edge (rest lengths from the initial positions)
+// and a stiff bending element on the triple, falling and flexing under gravity.
+const char* kBentChain = R"({
+  "time": {"dt": 0.001, "duration": 0.2},
+  "backend": {"name": "none"},
+  "particles": [
+    {"x": [0.0, 1.0], "v": [0.0, 0.4], "mass": 0.1, "radius": 0.01},
+    {"x": [0.2, 1.05], "v": [0.1, 0.0], "mass": 0.1, "radius": 0.01},
+    {"x": [0.4, 0.95], "v": [0.0, -0.2], "mass": 0.1, "radius": 0.01}
+  ],
+  "forces": [
+    {"type": "gravity"},
+    {"type": "damped_spring", "params": {"ks": 300.0, "kd": 0.2}, "elements": [[0, 1], [1, 2]]},
+    {"type": "bending", "params": {"k": 0.5}, "elements": [[0, 1, 2]]}
+  ]
+})";
+
 const char* const kIntegrators[] = {"symplectic_euler", "velocity_verlet", "implicit_euler"};
 
 }  // namespace
@@ -115,4 +132,27 @@ TEST_CASE("parameter derivatives: a blob's area stiffness and damping against wh
     check_against_runs(file, {}, "target:4:0.4,1.1",
                        {"forces[2].params.k", "forces[2].params.kd", "forces[1].params.kd"},
                        integrator);
+}
+
+// A force is asked for its fused products (ABI 4.5) only when every value differentiated in
+// it is a parameter its plugin differentiates. Here the springs take their rest lengths from
+// the initial positions, so with particles[1].x among the values they go through
+// add_jacobian_products, add_dforce_dparam and the differenced rest lengths, while bending
+// (flat rest shape, whatever the initial positions) keeps its fused call; both against whole
+// runs.
+TEST_CASE("parameter derivatives: fused and separate calls in one run, against whole runs",
+          "[gradients][scene]") {
+  const std::string file = scene_file("grad_dparam_chain", kBentChain);
+  const std::vector<std::string> all{"forces[1].params.ks", "forces[2].params.k", "particles[1].x"};
+  for (const char* integrator : kIntegrators) {
+    INFO(integrator);
+    check_against_runs(file, {}, "final:2:y", all, integrator);
+    const nlohmann::json both = gradient(file, {}, "final:2:y", all, integrator).to_json();
+    CHECK(both["cost"]["fused_product_evaluations"].get<uint64_t>() > 0);         // bending
+    CHECK(both["cost"]["parameter_derivative_evaluations"].get<uint64_t>() > 0);  // springs' ks
+    const nlohmann::json springs =
+        gradient(file, {}, "final:2:y", {"forces[1].params.ks", "particles[1].x"}, integrator)
+            .to_json();
+    CHECK(springs["cost"]["fused_product_evaluations"] == 0);
+  }
 }

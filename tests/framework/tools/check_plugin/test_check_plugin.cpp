@@ -205,6 +205,29 @@ TEST_CASE("fused products: a wrong one fails, against the plugin's separate entr
   require_pass(check_fixture("libfixture_cs_triangle_area.so"), kFused);
   // a plugin without the entry is not one check short
   CHECK(check("linear_spring").find("adjoint_products") == nullptr);
+  // the products counted twice in the fused entry only: its (df/dx)^T w half fails
+  const auto gx = check_fixture("libfixture_wrong_adjoint_gx.so");
+  require_fail(gx, "adjoint_products");
+  CHECK(gx.find("jacobian_products")->status == pinsim::CheckStatus::Pass);
+  CHECK(gx.find("adjoint_products")->detail.find("(df/dx)^T w") != std::string::npos);
+}
+
+TEST_CASE("fused products: ConstraintSpring's finds its slots by name, takes an override") {
+  // bias (a vec2, a uniform force: not a constraint, so constraint_force fails by design), a
+  // string, then kd before ks: the slots ks and kd are found by name, bias from the class's
+  // add_dforce_dparam
+  const auto layout = check_fixture("libfixture_cs_param_layout.so");
+  INFO(pinsim::format_report(layout));
+  for (const char* name :
+       {"gradient", "dfdx", "dfdv", "dparam", "jacobian_products", "adjoint_products"}) {
+    INFO(name);
+    REQUIRE(layout.find(name) != nullptr);
+    CHECK(layout.find(name)->status == pinsim::CheckStatus::Pass);
+  }
+  // a class's own add_jacobian_products (doubled here) is what the fused entry gives
+  const auto own = check_fixture("libfixture_cs_wrong_products.so");
+  require_fail(own, "jacobian_products");
+  CHECK(own.find("adjoint_products")->status == pinsim::CheckStatus::Pass);
 }
 
 TEST_CASE("fixture that divides by zero at a degenerate state fails the degenerate check") {
