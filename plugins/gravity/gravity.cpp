@@ -132,7 +132,27 @@ double Gravity::energy(const StateView& s) const {
 
 void Gravity::add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx,
                                     ForceOut*) const {
-  if (!pairwise_) return;
+  if (pairwise_) pair_products<false>(s, w, gx, nullptr);
+}
+
+void Gravity::add_adjoint_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut*,
+                                   std::span<double> gp) const {
+  if (gp.size() != 3) throw Error("add_adjoint_products: expected 3 slots (g[0], g[1], G)");
+  if (pairwise_) {
+    pair_products<true>(s, w, gx, &gp[2]);
+    return;
+  }
+  for (const uint32_t p : particles_) {  // uniform: w . d f / d g_c = sum m_i w_c,i
+    const double im = s.inv_mass[p];
+    if (!(im > 0.0)) continue;
+    gp[0] += w(0, p) / im;
+    gp[1] += w(1, p) / im;
+  }
+}
+
+template <bool Params>
+void Gravity::pair_products(const StateView& s, const Field& w, ForceOut& gx, double* dG) const {
+  double sum = 0.0;
   for_each_pair(s, [&](uint32_t k, uint32_t l, const Vec2& r, double rs2) {
     const double gmm = G_ / (s.inv_mass[k] * s.inv_mass[l]);
     const double p2 = std::pow(rs2, 0.5 * (alpha_ - 2.0));
@@ -141,7 +161,10 @@ void Gravity::add_jacobian_products(const StateView& s, const Field& w, ForceOut
     const Vec2 kd = gmm * (p2 * d + (alpha_ - 2.0) * p2 / rs2 * r.dot(d) * r);
     gx.col(k) -= kd;
     gx.col(l) += kd;
+    // f_k = -G m_k m_l R_s^(alpha - 2) r: w . df/dG = -m_k m_l p2 r.(w_k - w_l)
+    if constexpr (Params) sum -= (1.0 / s.inv_mass[k]) / s.inv_mass[l] * p2 * r.dot(d);
   });
+  if constexpr (Params) *dG += sum;
 }
 
 void Gravity::add_dfdx(const StateView& s, Triplets& J) const {

@@ -31,8 +31,15 @@ class Gravity {
   /// gx += (df/dx)^T w: uniform 0; pairwise, K symmetric, -K (w_k - w_l) on p_k and its
   /// negative on p_l. gv: 0.
   void add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut*) const;
+  /// The same products and, in their pass, w . d f / d g_c = Σ m_i w_c,i (uniform) into
+  /// gp[0], gp[1] and w . d f / d G (pairwise: w . the force at G = 1) into gp[2].
+  void add_adjoint_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut*,
+                            std::span<double> gp) const;
 
  private:
+  /// pairwise: the products, with w . df/dG added to *dG when Params.
+  template <bool Params>
+  void pair_products(const StateView& s, const Field& w, ForceOut& gx, double* dG) const;
   /// Calls f(k, l, r, rs2) for every pair k < l (in list order) of listed particles with
   /// inverse mass > 0 whose softened squared distance rs2 = |r|² + ε² (r = p_k - p_l) is
   /// above the degenerate limit: the one pair loop of the pairwise mode.

@@ -111,12 +111,32 @@ Mat2 LinearSpring::block(const StateView& s, std::size_t e) const {
 
 void LinearSpring::add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx,
                                          ForceOut*) const {
+  products<false>(s, w, gx, nullptr);
+}
+
+void LinearSpring::add_adjoint_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut*,
+                                        std::span<double> gp) const {
+  if (gp.size() != 1) throw Error("add_adjoint_products: expected 1 slot (k)");
+  products<true>(s, w, gx, gp.data());
+}
+
+template <bool Params>
+void LinearSpring::products(const StateView& s, const Field& w, ForceOut& gx, double* gp) const {
+  double dk = 0.0;
   for (std::size_t e = 0; e < rest_.size(); ++e) {
     const uint32_t a = idx_[2 * e], b = idx_[2 * e + 1];
-    const Vec2 p = block(s, e) * (w.col(a) - w.col(b));
+    const Vec2 dw = w.col(a) - w.col(b);
+    const Vec2 p = block(s, e) * dw;
     gx.col(a) -= p;
     gx.col(b) += p;
+    if constexpr (Params) {  // f_a = -k c R, c = (R - L)/R (1 when L = 0): w.df/dk = -c R.dw
+      const Vec2 d = s.x.col(a) - s.x.col(b);
+      const double l = rest_[e], r = d.norm();
+      const double c = l == 0.0 ? 1.0 : (r > kMinLength ? (r - l) / r : 0.0);
+      dk -= c * d.dot(dw);
+    }
   }
+  if constexpr (Params) gp[0] += dk;
 }
 
 void LinearSpring::add_dfdx(const StateView& s, Triplets& J) const {

@@ -26,6 +26,10 @@ class LinearSpring {
   void add_dfdv(const StateView&, Triplets&) const {}
   /// gx += (df/dx)^T w: K symmetric, so -K (w_k - w_l) on p_k and its negative on p_l; gv: 0.
   void add_jacobian_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut*) const;
+  /// The same products and, in their pass, w . d f / d k = -sum c R·(w_a - w_b) into gp[0]
+  /// (c = (R - L)/R, 1 when L = 0).
+  void add_adjoint_products(const StateView& s, const Field& w, ForceOut& gx, ForceOut*,
+                            std::span<double> gp) const;
 
   /// The springs as constraints C = R - L, dC/dp_k = R̂ = -dC/dp_l (R̂ = 0 at R = 0), with
   /// ks = k, kd = 0: E = sum k/2 C^2 (pinsim/abi.h, pinsim_constraint_set).
@@ -39,6 +43,9 @@ class LinearSpring {
   double rest_length(std::size_t e) const { return rest_[e]; }
 
  private:
+  /// The products, with w . df/dk into *gp when Params.
+  template <bool Params>
+  void products(const StateView& s, const Field& w, ForceOut& gx, double* gp) const;
   /// f += the springs' force with stiffness k.
   void add_force_with(const StateView& s, ForceOut& f, double k) const;
   /// 2x2 stiffness block K of element e at positions x.

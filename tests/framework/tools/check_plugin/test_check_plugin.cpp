@@ -196,7 +196,12 @@ TEST_CASE("fused products: a wrong one fails, against the plugin's separate entr
   CHECK(r.find("jacobian_products")->status == pinsim::CheckStatus::Pass);
   CHECK(r.find("adjoint_products")->worst > 1e-3);
   CHECK(r.find("adjoint_products")->detail.find("w . d f / d k") != std::string::npos);
-  // the shipped fused ones: damped_spring's and bending's own, ConstraintSpring's generic one
+  // the shipped fused ones, and ConstraintSpring's generic one
+  require_pass(check("linear_spring"), kFused);
+  require_pass(check("linear_spring", {{"rest_length", 0.0}}), kFused);
+  require_pass(check("gravity", {{"g", {1.5, -3.0}}}), kFused);
+  require_pass(check("gravity", {{"mode", "pairwise"}, {"alpha", 0.5}, {"softening", 0.05}}, true),
+               kFused);
   require_pass(check("damped_spring"), kFused);
   require_pass(check("damped_spring", {{"kd", 0.0}, {"rest_length", 0.0}}), kFused);
   require_pass(check("bending"), kFused);
@@ -204,7 +209,7 @@ TEST_CASE("fused products: a wrong one fails, against the plugin's separate entr
   require_pass(check("bending", {{"shape", "initial"}, {"length_scaled", true}}), kFused);
   require_pass(check_fixture("libfixture_cs_triangle_area.so"), kFused);
   // a plugin without the entry is not one check short
-  CHECK(check("linear_spring").find("adjoint_products") == nullptr);
+  CHECK(check("area_pressure").find("adjoint_products") == nullptr);
   // the products counted twice in the fused entry only: its (df/dx)^T w half fails
   const auto gx = check_fixture("libfixture_wrong_adjoint_gx.so");
   require_fail(gx, "adjoint_products");
