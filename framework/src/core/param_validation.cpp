@@ -148,6 +148,9 @@ std::string format_param_table(const pinsim_plugin& plugin) {
       {PINSIM_CAP_DISSIPATIVE, "dissipative"},
       {PINSIM_CAP_CONCURRENT, "concurrent"},
       {PINSIM_CAP_CONSTRAINTS, "constraints"},
+      {PINSIM_CAP_DPARAM, "dparam"},
+      {PINSIM_CAP_JACOBIAN_PRODUCTS, "jacobian-products"},
+      {PINSIM_CAP_ADJOINT_PRODUCTS, "adjoint-products"},
       {PINSIM_CAP_DISTANCE, "distance"},
       {PINSIM_CAP_PARTICLE_CONTACT, "particle-contact"},
       {PINSIM_CAP_INPUTS, "inputs"},
@@ -176,6 +179,7 @@ std::string format_param_table(const pinsim_plugin& plugin) {
     // Units belong to quantities: a boolean or a string (a choice, a name) has none.
     const bool quantity = p.type != PINSIM_PARAM_BOOL && p.type != PINSIM_PARAM_STRING;
     if (quantity && p.units) o << "  [" << p.units << "]";
+    if (p.flags & PINSIM_PARAM_DIFFERENTIABLE) o << "  differentiable";
     o << "  " << p.doc << "\n";
   }
   return o.str();

@@ -33,6 +33,16 @@ TEST_CASE("cli: plugins lists the in-tree plugins and shows a parameter table") 
   r = pinsim_cli("plugins gravity");
   CHECK(r.code == 0);
   CHECK_THAT(r.output, Contains("parameters:") && Contains("m/s^2") && Contains("[0.0,-9.81]"));
+  // what pinsim grad can take of it: the parameter derivatives and products (ABI 4.4, 4.5),
+  // and which parameters are differentiable (g and G, not alpha)
+  CHECK_THAT(r.output, Contains("dparam jacobian-products adjoint-products"));
+  std::istringstream lines(r.output);
+  for (std::string l; std::getline(lines, l);) {
+    INFO(l);
+    if (l.rfind("    g ", 0) == 0 || l.rfind("    G ", 0) == 0)
+      CHECK_THAT(l, Contains("differentiable"));
+    if (l.rfind("    alpha ", 0) == 0) CHECK_THAT(l, !Contains("differentiable"));
+  }
 }
 
 TEST_CASE("cli: plugins gives units to quantities only") {
