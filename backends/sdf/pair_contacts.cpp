@@ -7,15 +7,11 @@
 namespace pinsim::sdf {
 
 namespace {
-/// Particles per chunk of the per-particle loops; entries per chunk of the grid's scan; hits
-/// per chunk of a wave (any value gives the same bits).
-constexpr std::size_t kParticles = 1024;
-constexpr std::size_t kEntries = 512;
+/// Hits per chunk of a wave (any value gives the same bits).
 constexpr std::size_t kWaveHits = 64;
 /// Hits from which a wave runs on threads: below it one thread resolves it faster than
 /// threads can be woken.
 constexpr std::size_t kParallelWave = 256;
-constexpr uint32_t kNoCell = ~0u;
 /// Hits from which order_hits sorts by buckets (below: std::sort); hits per task of its
 /// buckets' sorts on threads.
 constexpr std::size_t kBucketSort = 64;
@@ -25,12 +21,11 @@ constexpr uint32_t kIslandTask = 256;
 }  // namespace
 
 // Pair contacts in four stages:
-// 1. find_hits: each particle's box swept over the step (grown by its radius) goes into a
-//    uniform grid whose cells are as large as the largest box, so two boxes that overlap
-//    have home cells (the cell of the box's lower corner) at most one apart; each cell is
-//    compared with itself and four of its neighbours, so each pair is seen once. Pairs
-//    whose closed boxes overlap are the candidates; those that meet within the step with the
-//    velocities at its start are the hits.
+// 1. find_hits (pair_list.cpp): each particle's box swept over the step (grown by its
+//    radius); pairs whose closed boxes overlap are the candidates, those that meet within
+//    the step with the velocities at its start are the hits. The candidates come from a
+//    list of nearby pairs, those whose enlarged boxes overlap, kept while every swept box
+//    lies inside its enlarged box (then any two that overlap are listed).
 // 2. order_hits: the hits in order of (tau, i, j) (unique keys: any sort gives this order).
 // 3. resolve: in that order, each hit recomputes its time of impact from the current
 //    reference states of its two particles and applies the impulse. A hit reads and writes
@@ -43,170 +38,26 @@ constexpr uint32_t kIslandTask = 256;
 //    (tau, i, j), as one serial loop over the sorted hits would give.
 void PairContacts::schedule(const MutableState& s, double dt, double e, bool threads, EventSink& ev,
                             DriftRecorder* tape) {
+  find(s, dt, threads, tape);
+  resolve_found(s, dt, e, threads, ev);
+}
+
+void PairContacts::find(const MutableState& s, double dt, bool threads, DriftRecorder* tape) {
   counts_ = Counts{};
   sim_t_ = s.t;
   tape_ = tape;
   if (tape_ != nullptr) threads = false;  // the tape takes the hits in their order
   find_hits(s, dt, threads);
+  in_hit_.assign(s.n, 0);
+  for (const Hit& h : hits_) in_hit_[h.i] = in_hit_[h.j] = 1;
+}
+
+void PairContacts::resolve_found(const MutableState& s, double dt, double e, bool threads,
+                                 EventSink& ev) {
+  if (tape_ != nullptr) threads = false;
   order_hits(s.n, threads, dt);
   resolve(s, dt, e, threads);
   collect(s, ev);
-}
-
-void PairContacts::find_hits(const MutableState& s, double dt, bool threads) {
-  const std::size_t n = s.n;
-  boxes_.resize(n);
-  ref_.resize(n);
-  cell_of_.resize(n);
-  // Boxes and reference states; bounds and the largest extent of the finite boxes (min and
-  // max are exact, so per-chunk partials combine to the same values in any order).
-  struct Extent {
-    double x0 = HUGE_VAL, y0 = HUGE_VAL, x1 = -HUGE_VAL, y1 = -HUGE_VAL, size = 0.0;
-  };
-  const std::size_t pchunks = chunk_count(n, kParticles);
-  std::vector<Extent> part(pchunks);
-  auto boxes = [&](std::size_t c, std::size_t b, std::size_t end) {
-    Extent ex;
-    for (std::size_t i = b; i < end; ++i) {
-      const bool moves = s.inv_mass[i] > 0.0;
-      const Vec2 a = s.x.col(i), p = a + (moves ? Vec2(dt * s.v.col(i)) : Vec2::Zero());
-      const double r = s.radius[i];
-      const Box bx{std::min(a.x(), p.x()) - r, std::max(a.x(), p.x()) + r,
-                   std::min(a.y(), p.y()) - r, std::max(a.y(), p.y()) + r};
-      boxes_[i] = bx;
-      ref_[i] = {a, moves ? Vec2(s.v.col(i)) : Vec2::Zero(), 0.0};
-      const bool finite = std::isfinite(bx.x0) && std::isfinite(bx.x1) && std::isfinite(bx.y0) &&
-                          std::isfinite(bx.y1);
-      cell_of_[i] = finite ? 0u : kNoCell;
-      if (!finite) continue;
-      ex.x0 = std::min(ex.x0, bx.x0);
-      ex.y0 = std::min(ex.y0, bx.y0);
-      ex.x1 = std::max(ex.x1, bx.x1);
-      ex.y1 = std::max(ex.y1, bx.y1);
-      ex.size = std::max({ex.size, bx.x1 - bx.x0, bx.y1 - bx.y0});
-    }
-    part[c] = ex;
-  };
-  if (threads)
-    for_chunks(n, kParticles, boxes, Schedule::Even);
-  else
-    for (std::size_t c = 0; c < pchunks; ++c)
-      boxes(c, c * kParticles, std::min(n, (c + 1) * kParticles));
-  Extent all;
-  for (const Extent& ex : part) {
-    all.x0 = std::min(all.x0, ex.x0);
-    all.y0 = std::min(all.y0, ex.y0);
-    all.x1 = std::max(all.x1, ex.x1);
-    all.y1 = std::max(all.y1, ex.y1);
-    all.size = std::max(all.size, ex.size);
-  }
-  hits_.clear();
-  if (!(all.x0 <= all.x1)) return;  // no finite box
-  // Cells a little larger than the largest box (so rounding in the cell index cannot put
-  // two overlapping boxes two cells apart), and at most about 4 n of them.
-  const double w = all.x1 - all.x0, hgt = all.y1 - all.y0;
-  double h = all.size * (1.0 + 1e-6);
-  if (!(h > 0.0)) h = std::max({w, hgt, 1e-300});
-  const double limit = 4.0 * static_cast<double>(n) + 16.0;
-  while ((std::floor(w / h) + 1.0) * (std::floor(hgt / h) + 1.0) > limit) h *= 1.5;
-  const auto nx = static_cast<std::size_t>(std::floor(w / h)) + 1;
-  const auto ny = static_cast<std::size_t>(std::floor(hgt / h)) + 1;
-  const std::size_t cells = nx * ny;
-  // Counting sort of the boxes by home cell, cells column by column (cell cx ny + cy), in
-  // increasing particle index within a cell: a cell and the one above it, and the three
-  // cells of the next column beside them, are each one contiguous run. Each entry carries
-  // its particle's box and, apart, its start state (the scan reads them in order).
-  cell_start_.assign(cells + 1, 0);
-  for (std::size_t i = 0; i < n; ++i) {
-    if (cell_of_[i] == kNoCell) continue;
-    const auto cx = std::min(nx - 1, static_cast<std::size_t>((boxes_[i].x0 - all.x0) / h));
-    const auto cy = std::min(ny - 1, static_cast<std::size_t>((boxes_[i].y0 - all.y0) / h));
-    cell_of_[i] = static_cast<uint32_t>(cx * ny + cy);
-    ++cell_start_[cell_of_[i] + 1];
-  }
-  for (std::size_t c = 0; c < cells; ++c) cell_start_[c + 1] += cell_start_[c];
-  const std::size_t entries = cell_start_[cells];
-  sorted_.resize(entries);
-  sorted_body_.resize(entries);
-  {
-    std::vector<uint32_t>& fill = fill_;
-    fill.assign(cell_start_.begin(), cell_start_.end() - 1);
-    for (std::size_t i = 0; i < n; ++i) {
-      const uint32_t c = cell_of_[i];
-      if (c == kNoCell) continue;
-      const uint32_t k = fill[c]++;
-      // the runs of this cell's neighbours: up to the end of the cell above, and the cells
-      // of the next column from the row below to the row above
-      const std::size_t cx = c / ny, cy = c % ny, right = c + ny;
-      const uint32_t up = cell_start_[cy + 1 < ny ? c + 2 : c + 1];
-      const bool next = cx + 1 < nx;
-      const uint32_t b0 = next ? cell_start_[cy > 0 ? right - 1 : right] : 0;
-      const uint32_t b1 = next ? cell_start_[cy + 1 < ny ? right + 2 : right + 1] : 0;
-      sorted_[k] = {boxes_[i], static_cast<uint32_t>(i), up, b0, b1};
-      sorted_body_[k] = {ref_[i], s.radius[i], s.inv_mass[i]};
-    }
-  }
-  // Each entry against the later entries of its cell and the cell above, and the cells
-  // (+1, -1), (+1, 0), (+1, +1): each pair of cells at most one apart is seen once. The boxes
-  // that overlap are first gathered without branches, then tested.
-  const std::size_t echunks = chunk_count(entries, kEntries);
-  chunk_hits_.resize(echunks);
-  chunk_candidates_.assign(echunks, 0);
-  chunk_near_.resize(echunks);
-  auto scan = [&](std::size_t c, std::size_t b, std::size_t end) {
-    std::vector<Hit>& out = chunk_hits_[c];
-    std::vector<uint32_t>& near = chunk_near_[c];
-    out.clear();
-    std::size_t candidates = 0;
-    const Sorted* box = sorted_.data();
-    const Body* body = sorted_body_.data();
-    for (std::size_t a = b; a < end; ++a) {
-      const Box A = box[a].box;
-      const uint32_t up = box[a].up, b0 = box[a].b0, b1 = box[a].b1;
-      const std::size_t need = static_cast<std::size_t>(up - a - 1) + (b1 - b0);
-      if (near.size() < need) near.resize(need);
-      uint32_t* pick = near.data();
-      std::size_t k = 0;
-      auto gather = [&](uint32_t q0, uint32_t q1) {
-        for (uint32_t q = q0; q < q1; ++q) {
-          const Box& B = box[q].box;
-          pick[k] = q;
-          k += static_cast<unsigned>(A.x0 <= B.x1) & static_cast<unsigned>(B.x0 <= A.x1) &
-               static_cast<unsigned>(A.y0 <= B.y1) & static_cast<unsigned>(B.y0 <= A.y1);
-        }
-      };
-      gather(static_cast<uint32_t>(a + 1), up);
-      gather(b0, b1);
-      const Body& P = body[a];
-      const uint32_t ida = box[a].id;
-      for (std::size_t m = 0; m < k; ++m) {
-        const uint32_t q = pick[m];
-        const Body& Q = body[q];
-        if (P.w == 0.0 && Q.w == 0.0) continue;
-        ++candidates;
-        const uint32_t idq = box[q].id;
-        const bool first = ida < idq;
-        const Body &I = first ? P : Q, &J = first ? Q : P;
-        double tau = 0.0;
-        if (toi_refs(I.ref, J.ref, I.r + J.r, 0.0, dt, tau))
-          out.push_back({tau, first ? ida : idq, first ? idq : ida});
-      }
-    }
-    chunk_candidates_[c] = candidates;
-  };
-  if (threads)
-    for_chunks(entries, kEntries, scan);
-  else
-    for (std::size_t c = 0; c < echunks; ++c)
-      scan(c, c * kEntries, std::min(entries, (c + 1) * kEntries));
-  std::size_t total = 0;
-  for (std::size_t c = 0; c < echunks; ++c) {
-    total += chunk_hits_[c].size();
-    counts_.candidates += chunk_candidates_[c];
-  }
-  hits_.reserve(total);
-  for (const auto& h : chunk_hits_) hits_.insert(hits_.end(), h.begin(), h.end());
-  counts_.hits = hits_.size();
 }
 
 // The keys (tau, i, j) are unique, so any correct sort gives the same order. A counting sort
@@ -305,22 +156,6 @@ inline bool PairContacts::toi(const MutableState& s, uint32_t i, uint32_t j, dou
   return toi_refs(ref_[i], ref_[j], s.radius[i] + s.radius[j], tau0, dt, tau);
 }
 
-bool PairContacts::toi_refs(const Ref& ri, const Ref& rj, double rr, double tau0, double dt,
-                            double& tau) {
-  const Vec2 pi = ri.xr + ri.vc * (tau0 - ri.tr), pj = rj.xr + rj.vc * (tau0 - rj.tr);
-  const Vec2 dx = pi - pj, dv = ri.vc - rj.vc;
-  const double a = dv.squaredNorm(), b = dx.dot(dv), c = dx.squaredNorm() - rr * rr;
-  if (b >= 0.0) return false;  // not approaching
-  if (c <= 0.0) {
-    tau = tau0;
-    return true;
-  }
-  const double disc = b * b - a * c;
-  if (disc < 0.0) return false;
-  tau = tau0 + c / (-b + std::sqrt(disc));
-  return tau <= dt;
-}
-
 // The impulse J = -(1 + e) vn / (w_i + w_j) along the normal n from j to i at the time of
 // impact (w: inverse masses, 0 for pinned particles), as velocity changes J w_i n and
 // -J w_j n; the reference states move to the contact.
@@ -370,12 +205,21 @@ void PairContacts::resolve_hit(const MutableState& s, std::size_t h, double dt, 
 void PairContacts::resolve(const MutableState& s, double dt, double e, bool threads) {
   const std::size_t hits = hits_.size();
   outcome_.resize(hits);
-  // Waves: a hit goes one wave after the last of its particles' earlier hits.
+  // Waves: a hit goes one wave after the last of its particles' earlier hits. On the way,
+  // each particle's reference state starts as its start state (at its first hit).
   last_level_.assign(s.n, 0);
   level_of_.resize(hits);
+  ref_.resize(s.n);
+  auto start_ref = [&](uint32_t i) {
+    if (last_level_[i] != 0) return;
+    const Start& p = start_[i];
+    ref_[i] = {Vec2(p.x, p.y), Vec2(p.vx, p.vy), 0.0};
+  };
   uint32_t levels = 0;
   for (std::size_t h = 0; h < hits; ++h) {
     const uint32_t i = hits_[h].i, j = hits_[h].j;
+    start_ref(i);
+    start_ref(j);
     const uint32_t lv = std::max(last_level_[i], last_level_[j]);
     last_level_[i] = last_level_[j] = lv + 1;
     level_of_[h] = lv;

@@ -1,12 +1,17 @@
-// PairContacts: the sdf backend's particle-particle contacts within one step, found by a
-// uniform grid over the boxes the particles sweep, resolved in order of their time of impact
-// and handed to the obstacle march as velocity changes (README: Particle-particle contacts).
+// PairContacts: the sdf backend's particle-particle contacts within one step, found from a
+// list of nearby pairs (a uniform grid over enlarged swept boxes, kept over the steps while
+// every particle's swept box stays inside its enlarged one), resolved in order of their time
+// of impact and handed to the obstacle march as velocity changes (README: Particle-particle
+// contacts).
 #pragma once
 
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <pinsim/plugin.hpp>
 #include <span>
+#include <utility>
 #include <vector>
 
 #include "drift_recorder.hpp"
@@ -27,6 +32,9 @@ class PairContacts {
     std::size_t impulses = 0;        ///< impulses applied (events emitted)
     std::size_t levels = 0;          ///< waves of hits sharing no particle (see schedule())
     std::size_t largest_island = 0;  ///< hits of the largest island (on threads only)
+    std::size_t listed = 0;          ///< pairs in the list of nearby pairs
+    bool rebuilt = false;            ///< whether this step built that list anew
+    std::size_t moved = 0;           ///< else, particles given a new box in it
   };
 
   /// The step's pair contacts of s over [s.t, s.t + dt] with restitution e: every particle's
@@ -36,11 +44,20 @@ class PairContacts {
   /// is resolved, in the order of the hits (then threads must be false).
   void schedule(const MutableState& s, double dt, double e, bool threads, EventSink& ev,
                 DriftRecorder* tape = nullptr);
+  /// schedule() in two parts, for a caller with other work between them: find() the step's
+  /// hits (then in_hit(i) tells whether particle i may change in this step), then
+  /// resolve_found() them.
+  void find(const MutableState& s, double dt, bool threads, DriftRecorder* tape = nullptr);
+  void resolve_found(const MutableState& s, double dt, double e, bool threads, EventSink& ev);
+  /// Whether particle i is in one of the hits find() found.
+  bool in_hit(std::size_t i) const { return in_hit_[i] != 0; }
   /// No pair contacts in this step for particles 0..n-1 (changes(i) empty).
   void clear(std::size_t n) {
     change_start_.assign(n + 1, 0);
     changes_.clear();
   }
+  /// Forget the list of nearby pairs: the next schedule() builds it anew (same results).
+  void forget_list() { listed_n_ = kNoList; }
   /// Particle i's velocity changes in this step, in order of time.
   std::span<const Change> changes(std::size_t i) const {
     return {changes_.data() + change_start_[i], changes_.data() + change_start_[i + 1]};
@@ -65,15 +82,21 @@ class PairContacts {
     double tau;
     uint32_t i, j;
   };
+  /// A particle at the start of the step: position, velocity (0 if pinned), radius, inverse
+  /// mass.
+  struct Start {
+    double x, y, vx, vy, r, w;
+  };
+  /// The box Start p sweeps over dt, grown by its radius.
+  static Box swept_box(const Start& p, double dt) {
+    const double px = p.x + dt * p.vx, py = p.y + dt * p.vy;
+    return {std::min(p.x, px) - p.r, std::max(p.x, px) + p.r, std::min(p.y, py) - p.r,
+            std::max(p.y, py) + p.r};
+  }
   /// Where a particle is along its straight path: at xr at time tr, velocity vc.
   struct Ref {
     Vec2 xr, vc;
     double tr;
-  };
-  /// A particle's start state in the grid's order: reference state, radius, inverse mass.
-  struct Body {
-    Ref ref;
-    double r, w;
   };
   /// What resolving one hit gave: whether it fired, its impulses and its event.
   struct Outcome {
@@ -83,7 +106,27 @@ class PairContacts {
     bool fired;
   };
 
+  static constexpr std::size_t kNoList = ~std::size_t{0};
+
   void find_hits(const MutableState& s, double dt, bool threads);
+  /// The swept boxes and reference states of the step; whether every box is inside its
+  /// particle's box of the list (a list exists for these particles).
+  bool sweep(const MutableState& s, double dt, bool threads);
+  /// The list of nearby pairs anew: enlarged boxes, a grid over them, pairs by lower index.
+  void build_list(const MutableState& s, double dt, bool threads);
+  /// Particle i's enlarged box (NaN: no finite swept box, left out of the list).
+  Box enlarged(std::size_t i, double dt) const;
+  /// The leavers with new enlarged boxes in the kept list: their listed pairs retired, their
+  /// pairs with the new boxes found among all particles' boxes.
+  void move_in_list(double dt, bool threads);
+  /// The hits among the listed pairs: swept boxes that overlap, meeting within the step.
+  void scan_list(const MutableState& s, double dt, bool threads);
+  /// A listed pair in the scan: candidate or not, and left for the root or not.
+  static inline unsigned look(const Start& P, const Start& Q, const Box& A, bool same, double dt,
+                              unsigned& candidate);
+  /// The hits among k pairs (ni[m], nj[m]) into out (pair_list.cpp).
+  void times_of_impact(const uint32_t* ni, const uint32_t* nj, std::size_t k, double dt,
+                       std::vector<Hit>& out) const;
   void order_hits(std::size_t n, bool threads, double dt);
   void sort_touching(std::size_t n);
   void resolve(const MutableState& s, double dt, double e, bool threads);
@@ -98,16 +141,27 @@ class PairContacts {
   /// Resolves hit h from the reference states of its particles (updating them).
   void resolve_hit(const MutableState& s, std::size_t h, double dt, double e);
 
-  std::vector<Box> boxes_;
-  std::vector<Ref> ref_;
-  std::vector<uint32_t> cell_of_;     ///< per particle: its box's home cell (~0u: none)
+  std::vector<Start> start_;          ///< per particle: its start state
+  std::vector<Ref> ref_;              ///< per particle in a hit: its reference state (resolve())
+  std::vector<Box> fat_;              ///< per particle: its box in the list (NaN: none)
+  std::vector<uint32_t> list_start_;  ///< per particle (+1): first entry in list_
+  std::vector<uint32_t> list_;        ///< each particle's listed partners of higher index
+  std::size_t listed_n_ = kNoList;    ///< particles of the list (kNoList: no list)
+  std::vector<std::vector<uint32_t>> chunk_leavers_;  ///< per particle chunk: boxes outside
+  std::vector<uint32_t> leavers_;  ///< this step's particles outside their fat boxes
+  std::vector<std::pair<uint32_t, uint32_t>> extra_;  ///< pairs (i < j) of moved particles
+  std::vector<Box> old_fat_;                          ///< move_in_list(): the leavers' boxes before
+  std::vector<std::size_t> chunk_dead_;               ///< move_in_list(): entries retired per chunk
+  std::size_t dead_ = 0;  ///< list_ entries retired (a particle's own index)
+  std::vector<std::vector<std::pair<uint32_t, uint32_t>>> chunk_pairs_;
+  std::vector<uint32_t> cell_of_;     ///< per particle: its fat box's home cell (~0u: none)
   std::vector<uint32_t> cell_start_;  ///< per cell: first entry in by_cell_
-  std::vector<Sorted> sorted_;        ///< boxes by cell, in increasing index per cell
-  std::vector<Body> sorted_body_;     ///< the same particles' start states
+  std::vector<Sorted> sorted_;        ///< fat boxes by cell, in increasing index per cell
   std::vector<std::vector<uint32_t>> chunk_near_;  ///< per scan chunk: overlapping entries
   std::vector<std::vector<Hit>> chunk_hits_;
   std::vector<std::size_t> chunk_candidates_;
   std::vector<Hit> hits_;                  ///< in order of (tau, i, j)
+  std::vector<char> in_hit_;               ///< per particle: in a hit of this step
   std::vector<Hit> ordered_;               ///< order_hits()'s buckets
   std::vector<uint32_t> bucket_start_;     ///< per bucket of order_hits(): first hit
   std::vector<Hit> touching_;              ///< sort_touching()'s hits by i
@@ -128,5 +182,22 @@ class PairContacts {
   double sim_t_ = 0.0;
   DriftRecorder* tape_ = nullptr;  ///< this schedule's drift recorder, if any
 };
+
+// (pair_contacts.cpp: the formula)
+inline bool PairContacts::toi_refs(const Ref& ri, const Ref& rj, double rr, double tau0, double dt,
+                                   double& tau) {
+  const Vec2 pi = ri.xr + ri.vc * (tau0 - ri.tr), pj = rj.xr + rj.vc * (tau0 - rj.tr);
+  const Vec2 dx = pi - pj, dv = ri.vc - rj.vc;
+  const double a = dv.squaredNorm(), b = dx.dot(dv), c = dx.squaredNorm() - rr * rr;
+  if (b >= 0.0) return false;  // not approaching
+  if (c <= 0.0) {
+    tau = tau0;
+    return true;
+  }
+  const double disc = b * b - a * c;
+  if (disc < 0.0) return false;
+  tau = tau0 + c / (-b + std::sqrt(disc));
+  return tau <= dt;
+}
 
 }  // namespace pinsim::sdf

@@ -16,6 +16,7 @@
 #endif
 
 #include "pair_contacts.hpp"
+#include "test_support.hpp"
 
 using pinsim::EventSink;
 using pinsim::MutableState;
@@ -51,6 +52,7 @@ Balls crowd(std::size_t n, double side, unsigned seed) {
 struct Result {
   std::vector<std::vector<PairContacts::Change>> changes;
   std::vector<pinsim_event> events;
+  std::size_t candidates = 0, hits = 0;  ///< pairs whose swept boxes overlap; of them, hits
 };
 
 /// The serial reference over all pairs (O(n^2)).
@@ -89,11 +91,13 @@ Result reference(const Balls& s, double t0, double dt, double e) {
     std::size_t i, j;
   };
   std::vector<Hit> hits;
+  std::size_t candidates = 0;
   for (std::size_t i = 0; i < n; ++i)
     for (std::size_t j = i + 1; j < n; ++j) {
       const Box &A = box[i], &B = box[j];
       if (!(A.x0 <= B.x1 && B.x0 <= A.x1 && A.y0 <= B.y1 && B.y0 <= A.y1)) continue;
       if (s.w[i] == 0.0 && s.w[j] == 0.0) continue;
+      ++candidates;
       double tau = 0.0;
       if (toi(i, j, 0.0, tau)) hits.push_back({tau, i, j});
     }
@@ -101,6 +105,8 @@ Result reference(const Balls& s, double t0, double dt, double e) {
     return a.tau < b.tau || (a.tau == b.tau && (a.i < b.i || (a.i == b.i && a.j < b.j)));
   });
   Result out;
+  out.candidates = candidates;
+  out.hits = hits.size();
   out.changes.resize(n);
   for (const Hit& h : hits) {
     const std::size_t i = h.i, j = h.j;
@@ -149,6 +155,8 @@ Result scheduled(Balls& s, double t0, double dt, double e, bool threads, PairCon
   pc.schedule(ms, dt, e, threads, es);
   Result out;
   out.events = events;
+  out.candidates = pc.counts().candidates;
+  out.hits = pc.counts().hits;
   out.changes.resize(s.n());
   for (std::size_t i = 0; i < s.n(); ++i) {
     const auto c = pc.changes(i);
@@ -161,6 +169,8 @@ Result scheduled(Balls& s, double t0, double dt, double e, bool threads, PairCon
 bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
 void require_same(const Result& a, const Result& b) {
+  CHECK(a.candidates == b.candidates);  // each pair seen once
+  CHECK(a.hits == b.hits);
   REQUIRE(a.events.size() == b.events.size());
   for (std::size_t k = 0; k < a.events.size(); ++k)
     REQUIRE(std::memcmp(&a.events[k], &b.events[k], sizeof(pinsim_event)) == 0);
@@ -239,4 +249,130 @@ TEST_CASE("pair contacts: a fast particle widens the grid's cells and is still f
   bool fast_hit = false;
   for (const auto& ev : ref.events) fast_hit = fast_hit || ev.particle == 1 || ev.other == 1;
   CHECK(fast_hit);
+}
+
+namespace {
+
+/// One step of the crowd's own motion after the pair contacts: each velocity changed by its
+/// particle's changes, a drift of dt, reflection at the walls of [0, side]^2 (a dense crowd
+/// over many steps).
+void drift(Balls& b, const PairContacts& pc, double dt, double side) {
+  for (std::size_t i = 0; i < b.n(); ++i) {
+    if (b.w[i] == 0.0) continue;
+    for (const auto& c : pc.changes(i)) {
+      b.v[2 * i] += c.dv.x();
+      b.v[2 * i + 1] += c.dv.y();
+    }
+    for (int d = 0; d < 2; ++d) {
+      double& x = b.x[2 * i + d];
+      x += dt * b.v[2 * i + d];
+      if ((x < 0.0 && b.v[2 * i + d] < 0.0) || (x > side && b.v[2 * i + d] > 0.0))
+        b.v[2 * i + d] = -b.v[2 * i + d];
+    }
+  }
+}
+
+}  // namespace
+
+TEST_CASE(
+    "pair contacts: the list of nearby pairs kept over steps finds what the all-pairs loop finds") {
+  // 1500 balls in a 0.4 square moving up to 1 m/s, 80 steps of 1 ms (1 mm of travel per step
+  // against radii of 4-12 mm): the list lasts a few steps at a time. Between steps the state
+  // is also changed the ways a scene can: a particle jumps across the square, one grows, one
+  // is pinned and a pinned one freed, one's position is NaN for a step, a particle is added.
+  // Every step must equal the all-pairs loop to the bit, kept list or new.
+  const double side = 0.4, dt = 1e-3, e = 0.5;
+  Balls b = crowd(1500, side, 21);
+  PairContacts pc;
+  std::size_t kept = 0, moved = 0, built = 0;
+  for (int step = 0; step < 80; ++step) {
+    const pinsim::test::FpTrapsOff traps;  // (step 40: comparisons with a NaN position)
+    bool changed = true;
+    if (step == 20) {
+      b.x[2 * 5] = std::fmod(b.x[2 * 5] + 0.5 * side, side);
+    } else if (step == 30) {
+      b.r[7] *= 2.0;
+    } else if (step == 35) {
+      b.w[9] = 0.0;
+      b.w[17] = 2.0;
+    } else if (step == 40) {
+      b.x[2 * 11] = std::nan("");
+    } else if (step == 41) {
+      b.x[2 * 11] = 0.5 * side;
+    } else if (step == 50) {
+      b.x.insert(b.x.end(), {0.5 * side, 0.5 * side});
+      b.v.insert(b.v.end(), {0.3, -0.2});
+      b.w.push_back(1.0);
+      b.r.push_back(0.01);
+    } else {
+      changed = false;
+    }
+    const double t0 = step * dt;
+    const Result ref = reference(b, t0, dt, e);
+    const Result got = scheduled(b, t0, dt, e, false, pc);
+    INFO("step " << step);
+    require_same(ref, got);
+    // a jump out of the list's reach, growth, a NaN: a new box in the list (or a new list);
+    // a new particle count: a new list
+    const PairContacts::Counts& n = pc.counts();
+    if (changed && step != 35) CHECK((n.rebuilt || n.moved > 0));  // (pinning: still inside)
+    if (step == 50) CHECK(n.rebuilt);
+    built += n.rebuilt;
+    moved += n.moved > 0;
+    kept += !n.rebuilt && n.moved == 0;
+    CHECK(n.listed >= n.candidates);
+    drift(b, pc, dt, side);
+  }
+  CHECK(kept > 20);   // the list is kept as it is,
+  CHECK(moved > 10);  // with a few new boxes in place,
+  CHECK(built >= 2);  // or built anew
+  INFO("kept " << kept << ", moved " << moved << ", built " << built);
+}
+
+TEST_CASE("pair contacts: pairs that meet at the very end of the step are found") {
+  // Head-on pairs closing at 2 mm/s over gaps of 2 um (1 + k 1e-5), k = -20..20: times of
+  // impact dt (1 + k 1e-5), a slow approach where the bound that rules pairs out before their
+  // root (c + 2 b dt > 1e-6 (c - 2 b dt); its slack here is a tau^2 / (4 |b| dt), 2.5e-5)
+  // must keep every pair that meets within the step, and the root decide.
+  const double dt = 1e-3;
+  Balls b;
+  for (int k = -20; k <= 20; ++k) {
+    const double y = 0.1 * (k + 20);
+    const double gap = 2e-6 * (1.0 + k * 1e-5);
+    b.x.insert(b.x.end(), {0.0, y, 0.02 + gap, y});
+    b.v.insert(b.v.end(), {1e-3, 0.0, -1e-3, 0.0});
+    b.w.insert(b.w.end(), {1.0, 1.0});
+    b.r.insert(b.r.end(), {0.01, 0.01});
+  }
+  const Result ref = reference(b, 0.0, dt, 1.0);
+  CHECK(ref.events.size() >= 20);  // k <= 0 (k = 0 to rounding)
+  CHECK(ref.events.size() <= 21);
+  PairContacts pc;
+  require_same(ref, scheduled(b, 0.0, dt, 1.0, false, pc));
+}
+
+TEST_CASE("pair contacts: a particle that leaves its listed box on any one side is seen") {
+  // Two balls far apart (not listed); then one is put against the other, approaching, so
+  // that its swept box leaves its box of the list on the side facing the other only. The new
+  // step must give it a new box in the list and find the hit, for each of the four sides.
+  const double dt = 1e-3;
+  for (const Vec2& dir : {Vec2(1.0, 0.0), Vec2(-1.0, 0.0), Vec2(0.0, 1.0), Vec2(0.0, -1.0)}) {
+    INFO("direction " << dir.transpose());
+    Balls b;
+    b.x = {0.0, 0.0, 0.1 * dir.x(), 0.1 * dir.y()};
+    b.v = {0.0, 0.0, 0.0, 0.0};
+    b.w = {1.0, 1.0};
+    b.r = {0.01, 0.01};
+    PairContacts pc;
+    require_same(reference(b, 0.0, dt, 1.0), scheduled(b, 0.0, dt, 1.0, false, pc));
+    CHECK(pc.counts().listed == 0);
+    b.x[2] = 0.0199 * dir.x();
+    b.x[3] = 0.0199 * dir.y();
+    b.v[2] = -0.1 * dir.x();
+    b.v[3] = -0.1 * dir.y();
+    const Result ref = reference(b, dt, dt, 1.0);
+    REQUIRE(ref.events.size() == 1);
+    require_same(ref, scheduled(b, dt, dt, 1.0, false, pc));
+    CHECK(pc.counts().moved == 1);
+  }
 }

@@ -1,0 +1,437 @@
+// The first stage of the pair contacts (pair_contacts.cpp): the step's candidate pairs and
+// hits, from a list of nearby pairs kept over the steps (a Verlet list with skin, as
+// molecular dynamics keeps its neighbours; Box2D's broad phase keeps enlarged boxes the
+// same way).
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <pinsim/parallel.hpp>
+
+#include "pair_contacts.hpp"
+
+namespace pinsim::sdf {
+
+namespace {
+/// Particles per chunk of the per-particle loops; entries per chunk of the grid's scan (any
+/// value gives the same bits).
+constexpr std::size_t kParticles = 1024;
+constexpr std::size_t kEntries = 512;
+constexpr uint32_t kNoCell = ~0u;
+/// A particle's enlarged box: its swept box, also swept kAhead steps further at its
+/// velocity, grown on every side by kSkin times the swept box's larger side. The larger they
+/// are, the longer a list lasts and the more pairs it holds; any values give the same hits.
+constexpr double kAhead = 8.0;
+constexpr double kSkin = 0.125;
+/// The most particles outside their enlarged boxes that a step gives new boxes in place
+/// (together one pass over all the boxes); more build the list anew.
+constexpr std::size_t kMoves = 32;
+
+bool finite_box(double x0, double x1, double y0, double y1) {
+  return std::isfinite(x0) && std::isfinite(x1) && std::isfinite(y0) && std::isfinite(y1);
+}
+
+/// Whether two closed boxes overlap (callers leave boxes of NaN out first).
+template <class B>
+bool overlap(const B& a, const B& b) {
+  return a.x0 <= b.x1 && b.x0 <= a.x1 && a.y0 <= b.y1 && b.y0 <= a.y1;
+}
+}  // namespace
+
+// The hits are the pairs whose swept boxes overlap and that meet within the step. Whether a
+// pair is listed never changes them: the list holds every pair whose enlarged boxes overlap,
+// and while each swept box lies inside its particle's enlarged box two swept boxes that
+// overlap belong to such a pair. A particle whose swept box is not inside gets a new
+// enlarged box: up to kMoves of them in place (move_in_list), more (or a new particle count,
+// or no list yet, or a list grown a quarter larger by such moves) build the list anew.
+void PairContacts::find_hits(const MutableState& s, double dt, bool threads) {
+  const bool kept = sweep(s, dt, threads);
+  counts_.rebuilt =
+      !kept || leavers_.size() > kMoves || 4 * (dead_ + extra_.size()) > list_.size() + 256;
+  if (counts_.rebuilt) {
+    build_list(s, dt, threads);
+  } else if (!leavers_.empty()) {
+    move_in_list(dt, threads);
+    counts_.moved = leavers_.size();
+  }
+  counts_.listed = list_.size() - dead_ + extra_.size();
+  scan_list(s, dt, threads);
+}
+
+// Start states, and the particles whose swept box is not inside their enlarged box (at most
+// kMoves + 1 per chunk: more build the list anew anyway). False if there is no list for
+// these particles.
+bool PairContacts::sweep(const MutableState& s, double dt, bool threads) {
+  const std::size_t n = s.n;
+  start_.resize(n);
+  const bool listed = listed_n_ == n;
+  const std::size_t chunks = chunk_count(n, kParticles);
+  chunk_leavers_.resize(std::max(chunk_leavers_.size(), chunks));
+  auto sweep_chunk = [&](std::size_t c, std::size_t b, std::size_t end) {
+    std::vector<uint32_t>& out = chunk_leavers_[c];
+    out.clear();
+    for (std::size_t i = b; i < end; ++i) {
+      const bool moves = s.inv_mass[i] > 0.0;
+      const Start p{s.x(0, i),   s.x(1, i),    moves ? s.v(0, i) : 0.0, moves ? s.v(1, i) : 0.0,
+                    s.radius[i], s.inv_mass[i]};
+      start_[i] = p;
+      if (!listed || out.size() > kMoves) continue;
+      // a particle left out of the list (no finite box) must still have none
+      const Box bx = swept_box(p, dt);
+      const Box& f = fat_[i];
+      const bool inside = finite_box(bx.x0, bx.x1, bx.y0, bx.y1)
+                              ? !std::isnan(f.x0) && f.x0 <= bx.x0 && bx.x1 <= f.x1 &&
+                                    f.y0 <= bx.y0 && bx.y1 <= f.y1
+                              : std::isnan(f.x0);
+      if (!inside) out.push_back(static_cast<uint32_t>(i));
+    }
+  };
+  if (threads)
+    for_chunks(n, kParticles, sweep_chunk, Schedule::Even);
+  else
+    for (std::size_t c = 0; c < chunks; ++c)
+      sweep_chunk(c, c * kParticles, std::min(n, (c + 1) * kParticles));
+  leavers_.clear();
+  for (std::size_t c = 0; c < chunks && leavers_.size() <= kMoves; ++c)
+    leavers_.insert(leavers_.end(), chunk_leavers_[c].begin(), chunk_leavers_[c].end());
+  return listed;
+}
+
+// The enlarged box: the swept box, also swept kAhead steps further at the particle's
+// velocity, grown by kSkin times its larger side (the swept box itself if that is beyond the
+// doubles).
+PairContacts::Box PairContacts::enlarged(std::size_t i, double dt) const {
+  const Box bx = swept_box(start_[i], dt);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (!finite_box(bx.x0, bx.x1, bx.y0, bx.y1)) return {nan, nan, nan, nan};
+  const Vec2 ahead = kAhead * dt * Vec2(start_[i].vx, start_[i].vy);
+  const double m = kSkin * std::max(bx.x1 - bx.x0, bx.y1 - bx.y0);
+  const Box f{bx.x0 + std::min(ahead.x(), 0.0) - m, bx.x1 + std::max(ahead.x(), 0.0) + m,
+              bx.y0 + std::min(ahead.y(), 0.0) - m, bx.y1 + std::max(ahead.y(), 0.0) + m};
+  return finite_box(f.x0, f.x1, f.y0, f.y1) ? f : bx;
+}
+
+// The list is then: its entries not retired (pairs whose boxes are those of the last build)
+// and extra_ (every pair with a moved particle whose boxes overlap now). A retired entry
+// holds its own run's particle, a pair the scan never takes. A leaver's entries are those in
+// its own run and, in the runs of lower particles that did not move, those whose box met the
+// leaver's old box (if the leaver moved before they are retired already). One pass over
+// all particles for all the leavers, in fixed chunks (each writes only its own particles'
+// runs and its own extra pairs).
+void PairContacts::move_in_list(double dt, bool threads) {
+  const std::size_t n = listed_n_, moves = leavers_.size();
+  old_fat_.resize(moves);
+  for (std::size_t m = 0; m < moves; ++m) {
+    const uint32_t i = leavers_[m];
+    old_fat_[m] = fat_[i];
+    fat_[i] = enlarged(i, dt);
+    for (uint32_t k = list_start_[i]; k < list_start_[i + 1]; ++k)
+      if (list_[k] != i) {
+        list_[k] = i;
+        ++dead_;
+      }
+  }
+  auto leaver = [&](uint32_t j) { return std::binary_search(leavers_.begin(), leavers_.end(), j); };
+  std::erase_if(extra_, [&](const auto& p) { return leaver(p.first) || leaver(p.second); });
+  const std::size_t chunks = chunk_count(n, kParticles);
+  chunk_pairs_.resize(std::max(chunk_pairs_.size(), chunks));
+  chunk_dead_.assign(chunks, 0);
+  auto pass = [&](std::size_t c, std::size_t b, std::size_t end) {
+    auto& out = chunk_pairs_[c];
+    out.clear();
+    std::size_t dead = 0;
+    for (std::size_t j = b; j < end; ++j) {
+      const Box& f = fat_[j];
+      if (std::isnan(f.x0)) continue;
+      const auto jd = static_cast<uint32_t>(j);
+      const bool moved = leaver(jd);
+      for (std::size_t m = 0; m < moves; ++m) {
+        const uint32_t i = leavers_[m];
+        if (i == jd) continue;
+        const Box& old = old_fat_[m];
+        if (!moved && jd < i && !std::isnan(old.x0) && overlap(old, f))
+          for (uint32_t k = list_start_[j]; k < list_start_[j + 1]; ++k)
+            if (list_[k] == i) {
+              list_[k] = jd;
+              ++dead;
+            }
+        // a pair of two leavers once, from the higher one's side
+        const Box& now = fat_[i];
+        if ((!moved || jd < i) && !std::isnan(now.x0) && overlap(now, f))
+          out.emplace_back(std::min(i, jd), std::max(i, jd));
+      }
+    }
+    chunk_dead_[c] = dead;
+  };
+  if (threads)
+    for_chunks(n, kParticles, pass, Schedule::Even);
+  else
+    for (std::size_t c = 0; c < chunks; ++c)
+      pass(c, c * kParticles, std::min(n, (c + 1) * kParticles));
+  for (std::size_t c = 0; c < chunks; ++c) {
+    dead_ += chunk_dead_[c];
+    extra_.insert(extra_.end(), chunk_pairs_[c].begin(), chunk_pairs_[c].end());
+  }
+}
+
+void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
+  const std::size_t n = s.n;
+  fat_.resize(n);
+  cell_of_.resize(n);
+  list_start_.assign(n + 1, 0);
+  list_.clear();
+  extra_.clear();
+  dead_ = 0;
+  listed_n_ = n;
+  // Enlarged boxes; bounds and the largest extent of the finite ones (min and max are
+  // exact, so per-chunk partials combine to the same values in any order).
+  struct Extent {
+    double x0 = HUGE_VAL, y0 = HUGE_VAL, x1 = -HUGE_VAL, y1 = -HUGE_VAL, size = 0.0;
+  };
+  const std::size_t pchunks = chunk_count(n, kParticles);
+  std::vector<Extent> part(pchunks);
+  auto enlarge = [&](std::size_t c, std::size_t b, std::size_t end) {
+    Extent ex;
+    for (std::size_t i = b; i < end; ++i) {
+      const Box f = enlarged(i, dt);
+      fat_[i] = f;
+      if (std::isnan(f.x0)) {
+        cell_of_[i] = kNoCell;
+        continue;
+      }
+      cell_of_[i] = 0;
+      ex.x0 = std::min(ex.x0, f.x0);
+      ex.y0 = std::min(ex.y0, f.y0);
+      ex.x1 = std::max(ex.x1, f.x1);
+      ex.y1 = std::max(ex.y1, f.y1);
+      ex.size = std::max({ex.size, f.x1 - f.x0, f.y1 - f.y0});
+    }
+    part[c] = ex;
+  };
+  if (threads)
+    for_chunks(n, kParticles, enlarge, Schedule::Even);
+  else
+    for (std::size_t c = 0; c < pchunks; ++c)
+      enlarge(c, c * kParticles, std::min(n, (c + 1) * kParticles));
+  Extent all;
+  for (const Extent& ex : part) {
+    all.x0 = std::min(all.x0, ex.x0);
+    all.y0 = std::min(all.y0, ex.y0);
+    all.x1 = std::max(all.x1, ex.x1);
+    all.y1 = std::max(all.y1, ex.y1);
+    all.size = std::max(all.size, ex.size);
+  }
+  if (!(all.x0 <= all.x1)) return;  // no finite box: an empty list
+  // A uniform grid whose cells are a little larger than the largest box (so rounding in the
+  // cell index cannot put two overlapping boxes two cells apart), at most about 4 n of
+  // them: two boxes that overlap have home cells (the cell of the lower corner) at most one
+  // apart.
+  const double w = all.x1 - all.x0, hgt = all.y1 - all.y0;
+  double h = all.size * (1.0 + 1e-6);
+  if (!(h > 0.0)) h = std::max({w, hgt, 1e-300});
+  const double limit = 4.0 * static_cast<double>(n) + 16.0;
+  while ((std::floor(w / h) + 1.0) * (std::floor(hgt / h) + 1.0) > limit) h *= 1.5;
+  const auto nx = static_cast<std::size_t>(std::floor(w / h)) + 1;
+  const auto ny = static_cast<std::size_t>(std::floor(hgt / h)) + 1;
+  const std::size_t cells = nx * ny;
+  // Counting sort of the boxes by home cell, cells column by column (cell cx ny + cy), in
+  // increasing particle index within a cell: a cell and the one above it, and the three
+  // cells of the next column beside them, are each one contiguous run.
+  cell_start_.assign(cells + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (cell_of_[i] == kNoCell) continue;
+    const auto cx = std::min(nx - 1, static_cast<std::size_t>((fat_[i].x0 - all.x0) / h));
+    const auto cy = std::min(ny - 1, static_cast<std::size_t>((fat_[i].y0 - all.y0) / h));
+    cell_of_[i] = static_cast<uint32_t>(cx * ny + cy);
+    ++cell_start_[cell_of_[i] + 1];
+  }
+  for (std::size_t c = 0; c < cells; ++c) cell_start_[c + 1] += cell_start_[c];
+  const std::size_t entries = cell_start_[cells];
+  sorted_.resize(entries);
+  fill_.assign(cell_start_.begin(), cell_start_.end() - 1);
+  for (std::size_t i = 0; i < n; ++i) {
+    const uint32_t c = cell_of_[i];
+    if (c == kNoCell) continue;
+    // the runs of this cell's neighbours: up to the end of the cell above, and the cells of
+    // the next column from the row below to the row above
+    const std::size_t cx = c / ny, cy = c % ny, right = c + ny;
+    const uint32_t up = cell_start_[cy + 1 < ny ? c + 2 : c + 1];
+    const bool next = cx + 1 < nx;
+    const uint32_t b0 = next ? cell_start_[cy > 0 ? right - 1 : right] : 0;
+    const uint32_t b1 = next ? cell_start_[cy + 1 < ny ? right + 2 : right + 1] : 0;
+    sorted_[fill_[c]++] = {fat_[i], static_cast<uint32_t>(i), up, b0, b1};
+  }
+  // Each entry against the later entries of its cell and the cell above, and the cells
+  // (+1, -1), (+1, 0), (+1, +1): each pair of cells at most one apart is seen once. The boxes
+  // that overlap are gathered without branches.
+  const std::size_t echunks = chunk_count(entries, kEntries);
+  chunk_pairs_.resize(echunks);
+  chunk_near_.resize(echunks);
+  auto scan = [&](std::size_t c, std::size_t b, std::size_t end) {
+    auto& out = chunk_pairs_[c];
+    std::vector<uint32_t>& near = chunk_near_[c];
+    out.clear();
+    const Sorted* box = sorted_.data();
+    for (std::size_t a = b; a < end; ++a) {
+      const Box A = box[a].box;
+      const uint32_t up = box[a].up, b0 = box[a].b0, b1 = box[a].b1;
+      const std::size_t need = static_cast<std::size_t>(up - a - 1) + (b1 - b0);
+      if (near.size() < need) near.resize(need);
+      uint32_t* pick = near.data();
+      std::size_t k = 0;
+      auto gather = [&](uint32_t q0, uint32_t q1) {
+        for (uint32_t q = q0; q < q1; ++q) {
+          const Box& B = box[q].box;
+          pick[k] = q;
+          k += static_cast<unsigned>(A.x0 <= B.x1) & static_cast<unsigned>(B.x0 <= A.x1) &
+               static_cast<unsigned>(A.y0 <= B.y1) & static_cast<unsigned>(B.y0 <= A.y1);
+        }
+      };
+      gather(static_cast<uint32_t>(a + 1), up);
+      gather(b0, b1);
+      const uint32_t ida = box[a].id;
+      for (std::size_t m = 0; m < k; ++m) {
+        const uint32_t idq = box[pick[m]].id;
+        out.emplace_back(std::min(ida, idq), std::max(ida, idq));
+      }
+    }
+  };
+  if (threads)
+    for_chunks(entries, kEntries, scan);
+  else
+    for (std::size_t c = 0; c < echunks; ++c)
+      scan(c, c * kEntries, std::min(entries, (c + 1) * kEntries));
+  // The pairs by lower index (each particle's partners in the order found).
+  for (const auto& pairs : chunk_pairs_)
+    for (const auto& [i, j] : pairs) ++list_start_[i + 1];
+  for (std::size_t i = 0; i < n; ++i) list_start_[i + 1] += list_start_[i];
+  list_.resize(list_start_[n]);
+  fill_.assign(list_start_.begin(), list_start_.end() - 1);
+  for (const auto& pairs : chunk_pairs_)
+    for (const auto& [i, j] : pairs) list_[fill_[i]++] = j;
+}
+
+// Each listed pair (i < j): candidates are the pairs whose closed swept boxes overlap (not
+// both pinned), hits those that meet within the step with the velocities at its start; in
+// fixed chunks of particles, then in chunk order (order_hits sorts them).
+// Without branches on the outcome: first each listed pair's box test and a bound that
+// rules most candidates out without the root (below), counting the candidates and gathering
+// those left; then their times of impact as toi_refs gives them (the same bits).
+// With a = dv.dv, b = dx.dv, c = dx.dx - (r_i + r_j)^2 (toi_refs), apart (c > 0) and
+// approaching (b < 0), the first root tau* of a tau^2 + 2 b tau + c has
+// c = -2 b tau* - a tau*^2 <= 2 |b| tau*, so tau* >= c / (2 |b|): when c + 2 b dt > 0 by a
+// relative margin of 1e-6 the root is beyond dt by more than the rounding of the formula's
+// c / (-b + sqrt(b^2 - a c)) (a few ulps, 2e-8 relatively where b^2 - a c cancels), so the
+// pair is no hit. (The computed root's denominator is at most 2 |b|, so a root the rounding
+// makes real is beyond dt too.)
+/// One listed pair (P, Q; A is P's swept box) as the scan sees it: whether it is a candidate
+/// (closed swept boxes that overlap, not both pinned, not a retired entry: `same`), and
+/// whether it is one the bound above leaves for the root.
+[[gnu::always_inline]] inline unsigned PairContacts::look(const Start& P, const Start& Q,
+                                                          const Box& A, bool same, double dt,
+                                                          unsigned& candidate) {
+  const Box B = swept_box(Q, dt);
+  candidate = static_cast<unsigned>(A.x0 <= B.x1) & static_cast<unsigned>(B.x0 <= A.x1) &
+              static_cast<unsigned>(A.y0 <= B.y1) & static_cast<unsigned>(B.y0 <= A.y1) &
+              static_cast<unsigned>(P.w != 0.0 || Q.w != 0.0) & static_cast<unsigned>(!same);
+  const double dx = P.x - Q.x, dy = P.y - Q.y, dvx = P.vx - Q.vx, dvy = P.vy - Q.vy;
+  const double rr = P.r + Q.r;
+  const double qb = dx * dvx + dy * dvy, qc = (dx * dx + dy * dy) - rr * rr;
+  const double reach = 2.0 * qb * dt;  // <= 0 when approaching
+  const unsigned beyond =
+      static_cast<unsigned>(qc > 0.0) & static_cast<unsigned>(qc + reach > 1e-6 * (qc - reach));
+  return candidate & static_cast<unsigned>(qb < 0.0) & (beyond ^ 1u);
+}
+
+// The time of impact of each pair (ni[m], nj[m]) left by look(), as toi_refs gives it at
+// tau0 = 0 (reference times 0): touching (and approaching) gives 0, else the first root
+// c / (-b + sqrt(b^2 - a c)) if real and within the step; computed for every pair left
+// without branches, kept where it applies.
+void PairContacts::times_of_impact(const uint32_t* ni, const uint32_t* nj, std::size_t k, double dt,
+                                   std::vector<Hit>& out) const {
+  out.resize(k);
+  std::size_t hits = 0;
+  for (std::size_t m = 0; m < k; ++m) {
+    const uint32_t i = ni[m], j = nj[m];
+    const Start &P = start_[i], &Q = start_[j];
+    const double dx = P.x - Q.x, dy = P.y - Q.y, dvx = P.vx - Q.vx, dvy = P.vy - Q.vy;
+    const double rr = P.r + Q.r;
+    const double qa = dvx * dvx + dvy * dvy, qb = dx * dvx + dy * dvy;
+    const double qc = (dx * dx + dy * dy) - rr * rr;
+    const double disc = qb * qb - qa * qc;
+    const bool apart = qc > 0.0;  // (all are approaching)
+    const double root = qc / (-qb + std::sqrt(std::max(disc, 0.0)));
+    out[hits] = {apart ? root : 0.0, i, j};
+    hits += static_cast<unsigned>(!apart) |
+            (static_cast<unsigned>(disc >= 0.0) & static_cast<unsigned>(root <= dt));
+  }
+  out.resize(hits);
+}
+
+void PairContacts::scan_list(const MutableState& s, double dt, bool threads) {
+  const std::size_t n = s.n;
+  const std::size_t chunks = chunk_count(n, kParticles);
+  chunk_hits_.resize(chunks);
+  chunk_candidates_.assign(chunks, 0);
+  chunk_near_.resize(std::max(chunk_near_.size(), chunks + 1));
+  auto scan = [&](std::size_t c, std::size_t b, std::size_t end) {
+    std::vector<uint32_t>& near = chunk_near_[c];
+    const Start* p = start_.data();
+    const uint32_t* partner = list_.data();
+    const std::size_t listed = list_start_[end] - list_start_[b];
+    if (near.size() < 2 * listed) near.resize(2 * listed);
+    uint32_t* ni = near.data();
+    uint32_t* nj = ni + listed;
+    std::size_t candidates = 0, k = 0;
+    for (std::size_t i = b; i < end; ++i) {
+      const Start& P = p[i];
+      const Box A = swept_box(P, dt);
+      for (uint32_t q = list_start_[i]; q < list_start_[i + 1]; ++q) {
+        const uint32_t j = partner[q];
+        unsigned candidate = 0;
+        const unsigned left = look(P, p[j], A, j == i, dt, candidate);
+        ni[k] = static_cast<uint32_t>(i);
+        nj[k] = j;
+        candidates += candidate;
+        k += left;
+      }
+    }
+    chunk_candidates_[c] = candidates;
+    times_of_impact(ni, nj, k, dt, chunk_hits_[c]);
+  };
+  if (threads)
+    for_chunks(n, kParticles, scan);
+  else
+    for (std::size_t c = 0; c < chunks; ++c)
+      scan(c, c * kParticles, std::min(n, (c + 1) * kParticles));
+  if (!extra_.empty()) {  // the moved particles' pairs, as one more chunk
+    chunk_hits_.resize(chunks + 1);
+    chunk_candidates_.resize(chunks + 1);
+    std::vector<uint32_t>& near = chunk_near_[chunks];
+    near.resize(2 * extra_.size());
+    uint32_t* ni = near.data();
+    uint32_t* nj = ni + extra_.size();
+    std::size_t candidates = 0, k = 0;
+    for (const auto& [i, j] : extra_) {
+      unsigned candidate = 0;
+      const unsigned left =
+          look(start_[i], start_[j], swept_box(start_[i], dt), false, dt, candidate);
+      ni[k] = i;
+      nj[k] = j;
+      candidates += candidate;
+      k += left;
+    }
+    chunk_candidates_[chunks] = candidates;
+    times_of_impact(ni, nj, k, dt, chunk_hits_[chunks]);
+  }
+  std::size_t total = 0;
+  for (std::size_t c = 0; c < chunk_hits_.size(); ++c) {
+    total += chunk_hits_[c].size();
+    counts_.candidates += chunk_candidates_[c];
+  }
+  hits_.clear();
+  hits_.reserve(total);
+  for (const auto& h : chunk_hits_) hits_.insert(hits_.end(), h.begin(), h.end());
+  counts_.hits = hits_.size();
+}
+
+}  // namespace pinsim::sdf
