@@ -401,6 +401,10 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
                 ") travels beyond the sdf backend's limit of 1e+09 per step "
                 "(backends/sdf/README.md, Limits)");
   const bool pairs = particle_contacts_ && s.n > 1;
+  if (pairs && threads) {
+    march_beside_pairs(s, t0, dt, ev);
+    return;
+  }
   if (pairs)
     schedule_pairs(s, dt, threads, ev);
   else if (tape_.on())
@@ -436,6 +440,61 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   for (std::size_t c = 0; c < chunks; ++c) {
     add(stats_, chunk_stats_[c]);
     for (const pinsim_event& e : chunk_events_[c]) ev.emit(e);
+  }
+}
+
+// A particle in no hit of the step gets no velocity change from the pair contacts, so its
+// march (march_or_reuse, as in the serial loop) does not wait for them: those are marched in
+// fixed chunks while the hits are ordered and resolved (their events kept apart), then the
+// particles in hits, in the same chunks. The pair events are emitted first, then each chunk's
+// two event lists merged by particle (each is in particle order, and a particle is in one):
+// the order of the serial loop, for any thread count.
+void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, EventSink& ev) {
+  pairs_.find(s, dt, true);
+  rest_.resize(s.n);
+  const std::size_t chunks = chunk_count(s.n, kChunk);
+  chunk_stats_.assign(chunks, SdfStats{});
+  chunk_events_.resize(chunks);
+  late_events_.resize(chunks);
+  pair_events_.clear();
+  auto march_chunks = [&](bool in_hits, std::vector<std::vector<pinsim_event>>& events) {
+    for_chunks(s.n, kChunk, [&](std::size_t c, std::size_t b, std::size_t e) {
+      events[c].clear();
+      const pinsim_event_sink to{&events[c], &push_event};
+      EventSink sink(&to);
+      SdfStats st;
+      for (std::size_t i = b; i < e; ++i) {
+        if (!(s.inv_mass[i] > 0.0) || pairs_.in_hit(i) != in_hits) continue;
+        if (in_hits)
+          march_with_changes(i, s, t0, dt, st, sink);
+        else
+          march_or_reuse(i, s, t0, dt, st, sink);
+      }
+      add(chunk_stats_[c], st);
+    });
+  };
+  // (the hits on one thread beside the marches: with two threads the other is marching; from
+  // three, their waves may use the rest)
+  run_both(
+      [&] {
+        const pinsim_event_sink to{&pair_events_, &push_event};
+        EventSink sink(&to);
+        pairs_.resolve_found(s, dt, particle_e_, available_threads() > 2, sink);
+      },
+      [&] { march_chunks(false, chunk_events_); });
+  stats_.pair_contacts += pairs_.counts().impulses;
+  march_chunks(true, late_events_);
+  for (const pinsim_event& e : pair_events_) ev.emit(e);
+  const auto by_particle = [](const pinsim_event& a, const pinsim_event& b) {
+    return a.particle < b.particle;
+  };
+  for (std::size_t c = 0; c < chunks; ++c) {
+    add(stats_, chunk_stats_[c]);
+    const auto& early = chunk_events_[c];
+    const auto& late = late_events_[c];
+    auto a = early.begin(), b = late.begin();
+    while (a != early.end() || b != late.end())
+      ev.emit(b == late.end() || (a != early.end() && by_particle(*a, *b)) ? *a++ : *b++);
   }
 }
 

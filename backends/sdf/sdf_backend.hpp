@@ -78,6 +78,9 @@ class SdfBackend : public FieldBackend {
   /// Particle-particle contacts within the step: fills pairs_ (see README), on threads if
   /// `threads`.
   void schedule_pairs(const MutableState& s, double dt, bool threads, EventSink& ev);
+  /// The step on threads with pair contacts: the particles in no hit marched while the hits
+  /// are resolved, then the others.
+  void march_beside_pairs(MutableState& s, double t0, double dt, EventSink& ev);
 
   double depth_min_ = 1e-5;  ///< contact offset ("depthMin"), scene length
   double tol_ = 1e-6;        ///< march tolerance above the offset, scene length
@@ -106,6 +109,8 @@ class SdfBackend : public FieldBackend {
   std::vector<std::size_t> first_too_fast_;              ///< per chunk of kParticleChunk, this step
   std::vector<SdfStats> chunk_stats_;                    ///< per chunk, this step
   std::vector<std::vector<pinsim_event>> chunk_events_;  ///< per chunk, this step
+  std::vector<std::vector<pinsim_event>> late_events_;   ///< per chunk: particles in hits
+  std::vector<pinsim_event> pair_events_;                ///< this step's pair contacts
 };
 
 }  // namespace pinsim::sdf

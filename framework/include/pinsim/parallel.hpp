@@ -18,6 +18,7 @@
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 #include <tbb/partitioner.h>
 #include <tbb/task_arena.h>
 #endif
@@ -94,6 +95,22 @@ void for_chunks(std::size_t n, std::size_t chunk, Body&& body,
   (void)schedule;
 #endif
   for (std::size_t c = 0; c < chunks; ++c) run(c);
+}
+
+/// Runs first() and second() side by side when more than one thread is available (either on
+/// either thread; loops inside them share the threads), else first() then second(). For two
+/// pieces of work that share nothing they write. An exception from either reaches the
+/// caller after both end.
+template <class First, class Second>
+void run_both(First&& first, Second&& second) {
+#ifdef PINSIM_WITH_TBB
+  if (available_threads() > 1) {
+    tbb::parallel_invoke(first, second);
+    return;
+  }
+#endif
+  first();
+  second();
 }
 
 }  // namespace pinsim
