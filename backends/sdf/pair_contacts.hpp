@@ -109,8 +109,8 @@ class PairContacts {
   static constexpr std::size_t kNoList = ~std::size_t{0};
 
   void find_hits(const MutableState& s, double dt, bool threads);
-  /// The swept boxes and reference states of the step; whether every box is inside its
-  /// particle's box of the list (a list exists for these particles).
+  /// The start states of the step and the particles whose swept box is not inside their
+  /// box of the list (leavers_); whether a list exists for these particles.
   bool sweep(const MutableState& s, double dt, bool threads);
   /// The list of nearby pairs anew: enlarged boxes, a grid over them, pairs by lower index.
   void build_list(const MutableState& s, double dt, bool threads);
@@ -122,7 +122,7 @@ class PairContacts {
   /// The hits among the listed pairs: swept boxes that overlap, meeting within the step.
   void scan_list(const MutableState& s, double dt, bool threads);
   /// A listed pair in the scan: candidate or not, and left for the root or not.
-  static inline unsigned look(const Start& P, const Start& Q, const Box& A, bool same, double dt,
+  static inline unsigned look(const Start& P, const Start& Q, const Box& A, double dt,
                               unsigned& candidate);
   /// The hits among k pairs (ni[m], nj[m]) into out (pair_list.cpp).
   void times_of_impact(const uint32_t* ni, const uint32_t* nj, std::size_t k, double dt,
@@ -152,10 +152,11 @@ class PairContacts {
   std::vector<std::pair<uint32_t, uint32_t>> extra_;  ///< pairs (i < j) of moved particles
   std::vector<Box> old_fat_;                          ///< move_in_list(): the leavers' boxes before
   std::vector<std::size_t> chunk_dead_;               ///< move_in_list(): entries retired per chunk
-  std::size_t dead_ = 0;  ///< list_ entries retired (a particle's own index)
+  std::size_t dead_ = 0;        ///< list_ entries retired (a particle's own index)
+  std::size_t steps_kept_ = 0;  ///< steps since the list was built
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> chunk_pairs_;
   std::vector<uint32_t> cell_of_;     ///< per particle: its fat box's home cell (~0u: none)
-  std::vector<uint32_t> cell_start_;  ///< per cell: first entry in by_cell_
+  std::vector<uint32_t> cell_start_;  ///< per cell: first entry in sorted_
   std::vector<Sorted> sorted_;        ///< fat boxes by cell, in increasing index per cell
   std::vector<std::vector<uint32_t>> chunk_near_;  ///< per scan chunk: overlapping entries
   std::vector<std::vector<Hit>> chunk_hits_;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <pinsim/parallel.hpp>
+#include <string>
 
 #include "pair_contacts.hpp"
 
@@ -25,6 +26,9 @@ constexpr double kSkin = 0.125;
 /// The most particles outside their enlarged boxes that a step gives new boxes in place
 /// (together one pass over all the boxes); more build the list anew.
 constexpr std::size_t kMoves = 32;
+/// Steps after which a kept list is built anew all the same (its boxes may have been grown
+/// for motion that has since stopped; a build costs about as much as 3 steps of the scan).
+constexpr std::size_t kKeep = 128;
 
 bool finite_box(double x0, double x1, double y0, double y1) {
   return std::isfinite(x0) && std::isfinite(x1) && std::isfinite(y0) && std::isfinite(y1);
@@ -42,11 +46,13 @@ bool overlap(const B& a, const B& b) {
 // and while each swept box lies inside its particle's enlarged box two swept boxes that
 // overlap belong to such a pair. A particle whose swept box is not inside gets a new
 // enlarged box: up to kMoves of them in place (move_in_list), more (or a new particle count,
-// or no list yet, or a list grown a quarter larger by such moves) build the list anew.
+// or no list yet, or a list grown a quarter larger by such moves, or one kept kKeep steps:
+// boxes grown for motion that has since stopped) build the list anew.
 void PairContacts::find_hits(const MutableState& s, double dt, bool threads) {
   const bool kept = sweep(s, dt, threads);
-  counts_.rebuilt =
-      !kept || leavers_.size() > kMoves || 4 * (dead_ + extra_.size()) > list_.size() + 256;
+  counts_.rebuilt = !kept || leavers_.size() > kMoves || steps_kept_ >= kKeep ||
+                    4 * (dead_ + extra_.size()) > list_.size() + 256;
+  steps_kept_ = counts_.rebuilt ? 0 : steps_kept_ + 1;
   if (counts_.rebuilt) {
     build_list(s, dt, threads);
   } else if (!leavers_.empty()) {
@@ -301,6 +307,12 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
     for (std::size_t c = 0; c < echunks; ++c)
       scan(c, c * kEntries, std::min(entries, (c + 1) * kEntries));
   // The pairs by lower index (each particle's partners in the order found).
+  std::size_t found = 0;
+  for (const auto& pairs : chunk_pairs_) found += pairs.size();
+  if (found > std::numeric_limits<uint32_t>::max())
+    throw Error("sdf backend: " + std::to_string(found) +
+                " pairs of particles within reach of each other, more than the pair contacts "
+                "can list (4294967295)");
   for (const auto& pairs : chunk_pairs_)
     for (const auto& [i, j] : pairs) ++list_start_[i + 1];
   for (std::size_t i = 0; i < n; ++i) list_start_[i + 1] += list_start_[i];
@@ -324,15 +336,15 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
 // pair is no hit. (The computed root's denominator is at most 2 |b|, so a root the rounding
 // makes real is beyond dt too.)
 /// One listed pair (P, Q; A is P's swept box) as the scan sees it: whether it is a candidate
-/// (closed swept boxes that overlap, not both pinned, not a retired entry: `same`), and
+/// (closed swept boxes that overlap, not both pinned), and
 /// whether it is one the bound above leaves for the root.
 [[gnu::always_inline]] inline unsigned PairContacts::look(const Start& P, const Start& Q,
-                                                          const Box& A, bool same, double dt,
+                                                          const Box& A, double dt,
                                                           unsigned& candidate) {
   const Box B = swept_box(Q, dt);
   candidate = static_cast<unsigned>(A.x0 <= B.x1) & static_cast<unsigned>(B.x0 <= A.x1) &
               static_cast<unsigned>(A.y0 <= B.y1) & static_cast<unsigned>(B.y0 <= A.y1) &
-              static_cast<unsigned>(P.w != 0.0 || Q.w != 0.0) & static_cast<unsigned>(!same);
+              static_cast<unsigned>(P.w != 0.0 || Q.w != 0.0);
   const double dx = P.x - Q.x, dy = P.y - Q.y, dvx = P.vx - Q.vx, dvy = P.vy - Q.vy;
   const double rr = P.r + Q.r;
   const double qb = dx * dvx + dy * dvy, qc = (dx * dx + dy * dy) - rr * rr;
@@ -387,8 +399,9 @@ void PairContacts::scan_list(const MutableState& s, double dt, bool threads) {
       const Box A = swept_box(P, dt);
       for (uint32_t q = list_start_[i]; q < list_start_[i + 1]; ++q) {
         const uint32_t j = partner[q];
+        if (j == i) continue;  // retired
         unsigned candidate = 0;
-        const unsigned left = look(P, p[j], A, j == i, dt, candidate);
+        const unsigned left = look(P, p[j], A, dt, candidate);
         ni[k] = static_cast<uint32_t>(i);
         nj[k] = j;
         candidates += candidate;
@@ -413,8 +426,7 @@ void PairContacts::scan_list(const MutableState& s, double dt, bool threads) {
     std::size_t candidates = 0, k = 0;
     for (const auto& [i, j] : extra_) {
       unsigned candidate = 0;
-      const unsigned left =
-          look(start_[i], start_[j], swept_box(start_[i], dt), false, dt, candidate);
+      const unsigned left = look(start_[i], start_[j], swept_box(start_[i], dt), dt, candidate);
       ni[k] = i;
       nj[k] = j;
       candidates += candidate;

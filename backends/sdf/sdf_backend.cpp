@@ -265,11 +265,11 @@ double SdfBackend::slide_step(std::size_t k, const Vec2& x, const Vec2& v, doubl
   return c > 0.0 ? std::min(remaining, c / lip) : 0.0;
 }
 
-// Particle-particle contacts, one pass per step (pair_contacts.cpp): candidate pairs by a
-// grid over the boxes swept during the step; for each pair the time of impact tau of two
-// discs in linear motion; pairs handled in order of tau with the velocities as updated by
-// earlier pairs, each impulse J = -(1 + e) vn / (w_i + w_j) (w = inverse masses) becoming a
-// velocity change at tau that the obstacle march applies on the way. Obstacle contacts
+// Particle-particle contacts, one pass per step (pair_contacts.cpp): candidate pairs (boxes
+// swept during the step that overlap) from a kept list of nearby pairs; for each pair the time of
+// impact tau of two discs in linear motion; pairs handled in order of tau with the velocities as
+// updated by earlier pairs, each impulse J = -(1 + e) vn / (w_i + w_j) (w = inverse masses)
+// becoming a velocity change at tau that the obstacle march applies on the way. Obstacle contacts
 // inside the step do not re-schedule pairs.
 void SdfBackend::schedule_pairs(const MutableState& s, double dt, bool threads, EventSink& ev) {
   pairs_.schedule(s, dt, particle_e_, threads, ev, tape_.on() ? &tape_ : nullptr);
