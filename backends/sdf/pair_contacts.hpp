@@ -56,8 +56,6 @@ class PairContacts {
     change_start_.assign(n + 1, 0);
     changes_.clear();
   }
-  /// Forget the list of nearby pairs: the next schedule() builds it anew (same results).
-  void forget_list() { listed_n_ = kNoList; }
   /// Particle i's velocity changes in this step, in order of time.
   std::span<const Change> changes(std::size_t i) const {
     return {changes_.data() + change_start_[i], changes_.data() + change_start_[i + 1]};

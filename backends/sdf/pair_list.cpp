@@ -39,6 +39,19 @@ template <class B>
 bool overlap(const B& a, const B& b) {
   return a.x0 <= b.x1 && b.x0 <= a.x1 && a.y0 <= b.y1 && b.y0 <= a.y1;
 }
+
+/// for_chunks on threads, else the same chunks in order on this thread (a drift recording
+/// takes the hits in their order).
+template <class Body>
+void chunked(bool threads, std::size_t n, std::size_t chunk, Body&& body,
+             Schedule schedule = Schedule::Dynamic) {
+  if (threads) {
+    for_chunks(n, chunk, body, schedule);
+    return;
+  }
+  for (std::size_t c = 0; c < chunk_count(n, chunk); ++c)
+    body(c, c * chunk, std::min(n, (c + 1) * chunk));
+}
 }  // namespace
 
 // The hits are the pairs whose swept boxes overlap and that meet within the step. Whether a
@@ -91,11 +104,7 @@ bool PairContacts::sweep(const MutableState& s, double dt, bool threads) {
       if (!inside) out.push_back(static_cast<uint32_t>(i));
     }
   };
-  if (threads)
-    for_chunks(n, kParticles, sweep_chunk, Schedule::Even);
-  else
-    for (std::size_t c = 0; c < chunks; ++c)
-      sweep_chunk(c, c * kParticles, std::min(n, (c + 1) * kParticles));
+  chunked(threads, n, kParticles, sweep_chunk, Schedule::Even);
   leavers_.clear();
   for (std::size_t c = 0; c < chunks && leavers_.size() <= kMoves; ++c)
     leavers_.insert(leavers_.end(), chunk_leavers_[c].begin(), chunk_leavers_[c].end());
@@ -168,11 +177,7 @@ void PairContacts::move_in_list(double dt, bool threads) {
     }
     chunk_dead_[c] = dead;
   };
-  if (threads)
-    for_chunks(n, kParticles, pass, Schedule::Even);
-  else
-    for (std::size_t c = 0; c < chunks; ++c)
-      pass(c, c * kParticles, std::min(n, (c + 1) * kParticles));
+  chunked(threads, n, kParticles, pass, Schedule::Even);
   for (std::size_t c = 0; c < chunks; ++c) {
     dead_ += chunk_dead_[c];
     extra_.insert(extra_.end(), chunk_pairs_[c].begin(), chunk_pairs_[c].end());
@@ -213,11 +218,7 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
     }
     part[c] = ex;
   };
-  if (threads)
-    for_chunks(n, kParticles, enlarge, Schedule::Even);
-  else
-    for (std::size_t c = 0; c < pchunks; ++c)
-      enlarge(c, c * kParticles, std::min(n, (c + 1) * kParticles));
+  chunked(threads, n, kParticles, enlarge, Schedule::Even);
   Extent all;
   for (const Extent& ex : part) {
     all.x0 = std::min(all.x0, ex.x0);
@@ -301,11 +302,7 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
       }
     }
   };
-  if (threads)
-    for_chunks(entries, kEntries, scan);
-  else
-    for (std::size_t c = 0; c < echunks; ++c)
-      scan(c, c * kEntries, std::min(entries, (c + 1) * kEntries));
+  chunked(threads, entries, kEntries, scan);
   // The pairs by lower index (each particle's partners in the order found).
   std::size_t found = 0;
   for (const auto& pairs : chunk_pairs_) found += pairs.size();
@@ -411,11 +408,7 @@ void PairContacts::scan_list(const MutableState& s, double dt, bool threads) {
     chunk_candidates_[c] = candidates;
     times_of_impact(ni, nj, k, dt, chunk_hits_[c]);
   };
-  if (threads)
-    for_chunks(n, kParticles, scan);
-  else
-    for (std::size_t c = 0; c < chunks; ++c)
-      scan(c, c * kParticles, std::min(n, (c + 1) * kParticles));
+  chunked(threads, n, kParticles, scan);
   if (!extra_.empty()) {  // the moved particles' pairs, as one more chunk
     chunk_hits_.resize(chunks + 1);
     chunk_candidates_.resize(chunks + 1);
