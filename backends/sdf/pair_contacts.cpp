@@ -55,7 +55,7 @@ void PairContacts::find(const MutableState& s, double dt, bool threads, DriftRec
 void PairContacts::resolve_found(const MutableState& s, double dt, double e, bool threads,
                                  EventSink& ev) {
   if (tape_ != nullptr) threads = false;
-  order_hits(s.n, threads, dt);
+  order_hits(threads, dt);
   resolve(s, dt, e, threads);
   collect(s, ev);
 }
@@ -64,7 +64,7 @@ void PairContacts::resolve_found(const MutableState& s, double dt, double e, boo
 // by a bucket of tau that never decreases with tau (tau = 0 alone in bucket 0, then
 // floor(tau B / dt) + 1, B = the number of hits), then each bucket sorted by the full key: a
 // few hits per bucket but those touching at the start (tau = 0).
-void PairContacts::order_hits(std::size_t n, bool threads, double dt) {
+void PairContacts::order_hits(bool threads, double dt) {
   auto before = [](const Hit& a, const Hit& b) {
     return a.tau < b.tau || (a.tau == b.tau && (a.i < b.i || (a.i == b.i && a.j < b.j)));
   };
@@ -89,7 +89,7 @@ void PairContacts::order_hits(std::size_t n, bool threads, double dt) {
   // buckets of about kSortHits hits apart (each writes only its own buckets)
   auto sort_buckets = [&](std::size_t k0, std::size_t k1) {
     if (k0 == 0 && k1 > 0) {
-      sort_touching(n);
+      sort_touching();
       k0 = 1;
     }
     for (std::size_t k = k0; k < k1; ++k) {
@@ -120,30 +120,18 @@ void PairContacts::order_hits(std::size_t n, bool threads, double dt) {
   hits_.swap(ordered_);
 }
 
-// Bucket 0 of order_hits (tau = 0: the hits that touch at the start) in order of (i, j): a
-// counting sort by i, then each run of one i (a particle's few neighbours) by j.
-void PairContacts::sort_touching(std::size_t n) {
+// Bucket 0 of order_hits (tau = 0: the hits that touch at the start) in order of (i, j).
+// The scan finds them in that order from the list (its runs are in increasing order) and
+// appends those of the moved particles' pairs: those are sorted and merged in.
+void PairContacts::sort_touching() {
   Hit* b = ordered_.data();
-  const std::size_t count = bucket_start_[1];
-  if (count <= 16) {
-    std::sort(b, b + count,
-              [](const Hit& p, const Hit& q) { return p.i < q.i || (p.i == q.i && p.j < q.j); });
-    return;
-  }
-  std::vector<uint32_t>& start = touch_start_;
-  start.assign(n + 1, 0);
-  for (std::size_t h = 0; h < count; ++h) ++start[b[h].i + 1];
-  for (std::size_t i = 0; i < n; ++i) start[i + 1] += start[i];
-  touching_.resize(count);
-  for (std::size_t h = 0; h < count; ++h) touching_[start[b[h].i]++] = b[h];
-  for (std::size_t h = 0; h < count;) {  // runs of one i (start[i] now ends i's run)
-    const uint32_t i = touching_[h].i;
-    const std::size_t e = start[i];
-    for (std::size_t p = h + 1; p < e; ++p)
-      for (std::size_t q = p; q > h && touching_[q].j < touching_[q - 1].j; --q)
-        std::swap(touching_[q], touching_[q - 1]);
-    h = e;
-  }
+  Hit* e = b + bucket_start_[1];
+  auto by_pair = [](const Hit& p, const Hit& q) { return p.i < q.i || (p.i == q.i && p.j < q.j); };
+  Hit* mid = std::is_sorted_until(b, e, by_pair);
+  if (mid == e) return;
+  std::sort(mid, e, by_pair);
+  touching_.resize(static_cast<std::size_t>(e - b));
+  std::merge(b, mid, mid, e, touching_.begin(), by_pair);
   std::copy(touching_.begin(), touching_.end(), b);
 }
 
@@ -151,69 +139,55 @@ void PairContacts::sort_touching(std::size_t n) {
 // a tau^2 + 2 b tau + c = 0 with a = dv.dv, b = dx.dv, c = dx.dx - (r_i + r_j)^2, the first
 // root tau = (-b - sqrt(b^2 - a c)) / a written as c / (-b + sqrt(b^2 - a c)) (no
 // cancellation); already touching (c <= 0) and approaching: tau0.
-inline bool PairContacts::toi(const MutableState& s, uint32_t i, uint32_t j, double tau0, double dt,
-                              double& tau) const {
-  return toi_refs(ref_[i], ref_[j], s.radius[i] + s.radius[j], tau0, dt, tau);
+inline bool PairContacts::toi(uint32_t i, uint32_t j, double tau0, double dt, double& tau) const {
+  return toi_refs(ref_[i], ref_[j], ref_[i].r + ref_[j].r, tau0, dt, tau);
 }
 
 // The impulse J = -(1 + e) vn / (w_i + w_j) along the normal n from j to i at the time of
 // impact (w: inverse masses, 0 for pinned particles), as velocity changes J w_i n and
 // -J w_j n; the reference states move to the contact.
-void PairContacts::resolve_hit(const MutableState& s, std::size_t h, double dt, double e) {
+void PairContacts::resolve_hit(std::size_t h, double dt, double e) {
   const uint32_t i = hits_[h].i, j = hits_[h].j;
   Outcome& out = outcome_[h];
   out.fired = false;
   Ref &ri = ref_[i], &rj = ref_[j];
   double tau = 0.0;
-  if (!toi(s, i, j, std::max(ri.tr, rj.tr), dt, tau)) return;
+  if (!toi(i, j, std::max(ri.tr, rj.tr), dt, tau)) return;
   const Vec2 pi = ri.xr + ri.vc * (tau - ri.tr), pj = rj.xr + rj.vc * (tau - rj.tr);
   const Vec2 dx = pi - pj;
   const double l = dx.norm();
   const Vec2 nrm = l > 0.0 ? Vec2(dx / l) : Vec2(0.0, 1.0);
   const double vn = (ri.vc - rj.vc).dot(nrm);
   if (vn >= 0.0) return;
-  const double wi = s.inv_mass[i], wj = s.inv_mass[j];
+  const double wi = ri.w, wj = rj.w;
   const double jn = -(1.0 + e) * vn / (wi + wj);
-  const Vec2 dvi = jn * wi * nrm, dvj = -jn * wj * nrm;
+  const double ai = jn * wi, aj = -jn * wj;  // dv_i = ai n, dv_j = aj n
   if (tape_ != nullptr)
-    tape_->pair(i, j, tau, ri.xr, ri.vc, ri.tr, rj.xr, rj.vc, rj.tr, s.radius[i] + s.radius[j], wi,
-                wj, e);
+    tape_->pair(i, j, tau, ri.xr, ri.vc, ri.tr, rj.xr, rj.vc, rj.tr, ri.r + rj.r, wi, wj, e);
   ri.xr = pi;
   rj.xr = pj;
   ri.tr = rj.tr = tau;
-  ri.vc += dvi;
-  rj.vc += dvj;
-  out.fired = true;
-  out.tau = tau;
-  out.dvi = dvi;
-  out.dvj = dvj;
-  pinsim_event& ev = out.event;
-  ev = pinsim_event{};
-  ev.t = sim_t_ + tau;
-  ev.particle = i;
-  ev.obstacle = -1;
-  ev.other = j;
-  const Vec2 pt = pj + s.radius[j] * nrm;
-  ev.point[0] = pt.x();
-  ev.point[1] = pt.y();
-  ev.normal[0] = nrm.x();
-  ev.normal[1] = nrm.y();
-  ev.vn_before = vn;
-  ev.vn_after = (ri.vc - rj.vc).dot(nrm);
+  ri.vc += ai * nrm;
+  rj.vc += aj * nrm;
+  change_start_[i + 1] += static_cast<std::size_t>(wi > 0.0);
+  change_start_[j + 1] += static_cast<std::size_t>(wj > 0.0);
+  out = {tau, ai, aj, nrm, pj + rj.r * nrm, vn, (ri.vc - rj.vc).dot(nrm), wi > 0.0, wj > 0.0, true};
 }
 
 void PairContacts::resolve(const MutableState& s, double dt, double e, bool threads) {
   const std::size_t hits = hits_.size();
   outcome_.resize(hits);
+  change_start_.assign(s.n + 1, 0);  // resolve_hit counts each particle's changes
   // Waves: a hit goes one wave after the last of its particles' earlier hits. On the way,
-  // each particle's reference state starts as its start state (at its first hit).
+  // each particle's reference state starts as its start state (at its first hit). (A pass of
+  // its own: its reads of the particles run ahead of the resolution's.)
   last_level_.assign(s.n, 0);
   level_of_.resize(hits);
   ref_.resize(s.n);
   auto start_ref = [&](uint32_t i) {
     if (last_level_[i] != 0) return;
     const Start& p = start_[i];
-    ref_[i] = {Vec2(p.x, p.y), Vec2(p.vx, p.vy), 0.0};
+    ref_[i] = {Vec2(p.x, p.y), Vec2(p.vx, p.vy), 0.0, p.r, p.w};
   };
   uint32_t levels = 0;
   for (std::size_t h = 0; h < hits; ++h) {
@@ -227,7 +201,7 @@ void PairContacts::resolve(const MutableState& s, double dt, double e, bool thre
   }
   counts_.levels = levels;
   if (!threads || hits < kParallelWave) {  // one thread: the order of the hits is a schedule
-    for (std::size_t h = 0; h < hits; ++h) resolve_hit(s, h, dt, e);
+    for (std::size_t h = 0; h < hits; ++h) resolve_hit(h, dt, e);
     return;
   }
   if (resolve_islands(s, dt, e)) return;
@@ -244,7 +218,7 @@ void PairContacts::resolve(const MutableState& s, double dt, double e, bool thre
   for (std::size_t l = 0; l < levels; ++l) {
     const std::size_t b = level_start_[l], count = level_start_[l + 1] - b;
     auto wave = [&](std::size_t, std::size_t k0, std::size_t k1) {
-      for (std::size_t k = k0; k < k1; ++k) resolve_hit(s, by_level_[b + k], dt, e);
+      for (std::size_t k = k0; k < k1; ++k) resolve_hit(by_level_[b + k], dt, e);
     };
     if (count >= kParallelWave)
       for_chunks(count, kWaveHits, wave);
@@ -295,20 +269,13 @@ bool PairContacts::resolve_islands(const MutableState& s, double dt, double e) {
   if (task_start_.back() != hits) task_start_.push_back(static_cast<uint32_t>(hits));
   for (std::size_t h = 0; h < hits; ++h) by_level_[start[root_of_[h]]++] = static_cast<uint32_t>(h);
   for_chunks(task_start_.size() - 1, 1, [&](std::size_t t, std::size_t, std::size_t) {
-    for (uint32_t k = task_start_[t]; k < task_start_[t + 1]; ++k)
-      resolve_hit(s, by_level_[k], dt, e);
+    for (uint32_t k = task_start_[t]; k < task_start_[t + 1]; ++k) resolve_hit(by_level_[k], dt, e);
   });
   return true;
 }
 
 void PairContacts::collect(const MutableState& s, EventSink& ev) {
-  const std::size_t n = s.n;
-  change_start_.assign(n + 1, 0);
-  for (std::size_t h = 0; h < hits_.size(); ++h) {
-    if (!outcome_[h].fired) continue;
-    if (s.inv_mass[hits_[h].i] > 0.0) ++change_start_[hits_[h].i + 1];
-    if (s.inv_mass[hits_[h].j] > 0.0) ++change_start_[hits_[h].j + 1];
-  }
+  const std::size_t n = s.n;  // (change_start_ counted by resolve_hit)
   for (std::size_t i = 0; i < n; ++i) change_start_[i + 1] += change_start_[i];
   changes_.resize(change_start_[n]);
   std::vector<std::size_t>& fill = fill_changes_;
@@ -317,10 +284,21 @@ void PairContacts::collect(const MutableState& s, EventSink& ev) {
     const Outcome& o = outcome_[h];
     if (!o.fired) continue;
     const Hit& hit = hits_[h];
-    if (s.inv_mass[hit.i] > 0.0) changes_[fill[hit.i]++] = {o.tau, o.dvi};
-    if (s.inv_mass[hit.j] > 0.0) changes_[fill[hit.j]++] = {o.tau, o.dvj};
+    if (o.i_moves) changes_[fill[hit.i]++] = {o.tau, o.ai * o.nrm};
+    if (o.j_moves) changes_[fill[hit.j]++] = {o.tau, o.aj * o.nrm};
     ++counts_.impulses;
-    ev.emit(o.event);
+    pinsim_event event{};
+    event.t = sim_t_ + o.tau;
+    event.particle = hit.i;
+    event.obstacle = -1;
+    event.other = hit.j;
+    event.point[0] = o.point.x();
+    event.point[1] = o.point.y();
+    event.normal[0] = o.nrm.x();
+    event.normal[1] = o.nrm.y();
+    event.vn_before = o.vn;
+    event.vn_after = o.vn_after;
+    ev.emit(event);
   }
 }
 

@@ -91,17 +91,19 @@ class PairContacts {
     return {std::min(p.x, px) - p.r, std::max(p.x, px) + p.r, std::min(p.y, py) - p.r,
             std::max(p.y, py) + p.r};
   }
-  /// Where a particle is along its straight path: at xr at time tr, velocity vc.
+  /// Where a particle is along its straight path: at xr at time tr, velocity vc; its
+  /// radius and inverse mass.
   struct Ref {
     Vec2 xr, vc;
-    double tr;
+    double tr, r, w;
   };
-  /// What resolving one hit gave: whether it fired, its impulses and its event.
+  /// What resolving one hit gave: whether it fired; its impulses (velocity changes ai n and
+  /// aj n) and its event's figures.
   struct Outcome {
-    double tau;
-    Vec2 dvi, dvj;
-    pinsim_event event;
-    bool fired;
+    double tau, ai, aj;
+    Vec2 nrm, point;  ///< normal from j to i, contact point
+    double vn, vn_after;
+    bool i_moves, j_moves, fired;
   };
 
   static constexpr std::size_t kNoList = ~std::size_t{0};
@@ -125,26 +127,25 @@ class PairContacts {
   /// The hits among k pairs (ni[m], nj[m]) into out (pair_list.cpp).
   void times_of_impact(const uint32_t* ni, const uint32_t* nj, std::size_t k, double dt,
                        std::vector<Hit>& out) const;
-  void order_hits(std::size_t n, bool threads, double dt);
-  void sort_touching(std::size_t n);
+  void order_hits(bool threads, double dt);
+  void sort_touching();
   void resolve(const MutableState& s, double dt, double e, bool threads);
   bool resolve_islands(const MutableState& s, double dt, double e);
   void collect(const MutableState& s, EventSink& ev);
   /// Time of impact after tau0 of i and j moving linearly from their reference states.
-  bool toi(const MutableState& s, uint32_t i, uint32_t j, double tau0, double dt,
-           double& tau) const;
+  bool toi(uint32_t i, uint32_t j, double tau0, double dt, double& tau) const;
   /// The same from the two reference states and the sum of the radii rr.
   static inline bool toi_refs(const Ref& ri, const Ref& rj, double rr, double tau0, double dt,
                               double& tau);
   /// Resolves hit h from the reference states of its particles (updating them).
-  void resolve_hit(const MutableState& s, std::size_t h, double dt, double e);
+  void resolve_hit(std::size_t h, double dt, double e);
 
   std::vector<Start> start_;          ///< per particle: its start state
   std::vector<Ref> ref_;              ///< per particle in a hit: its reference state (resolve())
   std::vector<Box> fat_;              ///< per particle: its box in the list (NaN: none)
   std::vector<uint32_t> list_start_;  ///< per particle (+1): first entry in list_
-  std::vector<uint32_t> list_;        ///< each particle's listed partners of higher index
-  std::size_t listed_n_ = kNoList;    ///< particles of the list (kNoList: no list)
+  std::vector<std::pair<uint32_t, uint32_t>> list_;   ///< listed pairs (i < j), by i
+  std::size_t listed_n_ = kNoList;                    ///< particles of the list (kNoList: no list)
   std::vector<std::vector<uint32_t>> chunk_leavers_;  ///< per particle chunk: boxes outside
   std::vector<uint32_t> leavers_;  ///< this step's particles outside their fat boxes
   std::vector<std::pair<uint32_t, uint32_t>> extra_;  ///< pairs (i < j) of moved particles
@@ -163,8 +164,7 @@ class PairContacts {
   std::vector<char> in_hit_;               ///< per particle: in a hit of this step
   std::vector<Hit> ordered_;               ///< order_hits()'s buckets
   std::vector<uint32_t> bucket_start_;     ///< per bucket of order_hits(): first hit
-  std::vector<Hit> touching_;              ///< sort_touching()'s hits by i
-  std::vector<uint32_t> touch_start_;      ///< sort_touching()'s runs of one i
+  std::vector<Hit> touching_;              ///< sort_touching()'s merged hits
   std::vector<Outcome> outcome_;           ///< per hit
   std::vector<uint32_t> level_of_;         ///< per hit: its wave
   std::vector<uint32_t> last_level_;       ///< per particle: wave of its last hit so far

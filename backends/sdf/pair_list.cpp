@@ -140,8 +140,8 @@ void PairContacts::move_in_list(double dt, bool threads) {
     old_fat_[m] = fat_[i];
     fat_[i] = enlarged(i, dt);
     for (uint32_t k = list_start_[i]; k < list_start_[i + 1]; ++k)
-      if (list_[k] != i) {
-        list_[k] = i;
+      if (list_[k].second != i) {
+        list_[k].second = i;
         ++dead_;
       }
   }
@@ -165,8 +165,8 @@ void PairContacts::move_in_list(double dt, bool threads) {
         const Box& old = old_fat_[m];
         if (!moved && jd < i && !std::isnan(old.x0) && overlap(old, f))
           for (uint32_t k = list_start_[j]; k < list_start_[j + 1]; ++k)
-            if (list_[k] == i) {
-              list_[k] = jd;
+            if (list_[k].second == i) {
+              list_[k].second = jd;
               ++dead;
             }
         // a pair of two leavers once, from the higher one's side
@@ -303,7 +303,8 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
     }
   };
   chunked(threads, entries, kEntries, scan);
-  // The pairs by lower index (each particle's partners in the order found).
+  // The pairs by lower index, each particle's partners in increasing order (so the scan
+  // finds the hits that touch at the start in the order order_hits puts them in).
   std::size_t found = 0;
   for (const auto& pairs : chunk_pairs_) found += pairs.size();
   if (found > std::numeric_limits<uint32_t>::max())
@@ -316,7 +317,19 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
   list_.resize(list_start_[n]);
   fill_.assign(list_start_.begin(), list_start_.end() - 1);
   for (const auto& pairs : chunk_pairs_)
-    for (const auto& [i, j] : pairs) list_[fill_[i]++] = j;
+    for (const auto& p : pairs) list_[fill_[p.first]++] = p;
+  chunked(
+      threads, n, kParticles,
+      [&](std::size_t, std::size_t b, std::size_t end) {
+        for (std::size_t i = b; i < end; ++i) {  // a few partners each: insertion sort
+          auto* run = list_.data() + list_start_[i];
+          const std::size_t count = list_start_[i + 1] - list_start_[i];
+          for (std::size_t p = 1; p < count; ++p)
+            for (std::size_t q = p; q > 0 && run[q].second < run[q - 1].second; --q)
+              std::swap(run[q], run[q - 1]);
+        }
+      },
+      Schedule::Even);
 }
 
 // Each listed pair (i < j): candidates are the pairs whose closed swept boxes overlap (not
@@ -379,55 +392,35 @@ void PairContacts::times_of_impact(const uint32_t* ni, const uint32_t* nj, std::
 void PairContacts::scan_list(const MutableState& s, double dt, bool threads) {
   const std::size_t n = s.n;
   const std::size_t chunks = chunk_count(n, kParticles);
-  chunk_hits_.resize(chunks);
-  chunk_candidates_.assign(chunks, 0);
+  chunk_hits_.resize(chunks + 1);
+  chunk_candidates_.assign(chunks + 1, 0);
   chunk_near_.resize(std::max(chunk_near_.size(), chunks + 1));
-  auto scan = [&](std::size_t c, std::size_t b, std::size_t end) {
+  // pairs [p, p + count) as chunk c
+  auto scan = [&](std::size_t c, const std::pair<uint32_t, uint32_t>* pairs, std::size_t count) {
     std::vector<uint32_t>& near = chunk_near_[c];
+    if (near.size() < 2 * count) near.resize(2 * count);
+    uint32_t* ni = near.data();
+    uint32_t* nj = ni + count;
     const Start* p = start_.data();
-    const uint32_t* partner = list_.data();
-    const std::size_t listed = list_start_[end] - list_start_[b];
-    if (near.size() < 2 * listed) near.resize(2 * listed);
-    uint32_t* ni = near.data();
-    uint32_t* nj = ni + listed;
     std::size_t candidates = 0, k = 0;
-    for (std::size_t i = b; i < end; ++i) {
+    for (std::size_t m = 0; m < count; ++m) {
+      const uint32_t i = pairs[m].first, j = pairs[m].second;
+      if (j == i) continue;  // retired
       const Start& P = p[i];
-      const Box A = swept_box(P, dt);
-      for (uint32_t q = list_start_[i]; q < list_start_[i + 1]; ++q) {
-        const uint32_t j = partner[q];
-        if (j == i) continue;  // retired
-        unsigned candidate = 0;
-        const unsigned left = look(P, p[j], A, dt, candidate);
-        ni[k] = static_cast<uint32_t>(i);
-        nj[k] = j;
-        candidates += candidate;
-        k += left;
-      }
-    }
-    chunk_candidates_[c] = candidates;
-    times_of_impact(ni, nj, k, dt, chunk_hits_[c]);
-  };
-  chunked(threads, n, kParticles, scan);
-  if (!extra_.empty()) {  // the moved particles' pairs, as one more chunk
-    chunk_hits_.resize(chunks + 1);
-    chunk_candidates_.resize(chunks + 1);
-    std::vector<uint32_t>& near = chunk_near_[chunks];
-    near.resize(2 * extra_.size());
-    uint32_t* ni = near.data();
-    uint32_t* nj = ni + extra_.size();
-    std::size_t candidates = 0, k = 0;
-    for (const auto& [i, j] : extra_) {
       unsigned candidate = 0;
-      const unsigned left = look(start_[i], start_[j], swept_box(start_[i], dt), dt, candidate);
+      const unsigned left = look(P, p[j], swept_box(P, dt), dt, candidate);
       ni[k] = i;
       nj[k] = j;
       candidates += candidate;
       k += left;
     }
-    chunk_candidates_[chunks] = candidates;
-    times_of_impact(ni, nj, k, dt, chunk_hits_[chunks]);
-  }
+    chunk_candidates_[c] = candidates;
+    times_of_impact(ni, nj, k, dt, chunk_hits_[c]);
+  };
+  chunked(threads, n, kParticles, [&](std::size_t c, std::size_t b, std::size_t end) {
+    scan(c, list_.data() + list_start_[b], list_start_[end] - list_start_[b]);
+  });
+  scan(chunks, extra_.data(), extra_.size());  // the moved particles' pairs, as one more chunk
   std::size_t total = 0;
   for (std::size_t c = 0; c < chunk_hits_.size(); ++c) {
     total += chunk_hits_[c].size();
