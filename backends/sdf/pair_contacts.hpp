@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "drift_recorder.hpp"
+#include "pair_look.hpp"
 
 namespace pinsim::sdf {
 
@@ -65,10 +66,8 @@ class PairContacts {
   const Counts& counts() const { return counts_; }
 
  private:
-  /// The box particle i sweeps over the step, grown by its radius.
-  struct Box {
-    double x0, x1, y0, y1;
-  };
+  /// A box (particle i's swept or enlarged box).
+  using Box = SweptBox;
   /// A box in the grid's order, with its particle and the entries to compare it with:
   /// [this + 1, up) and [b0, b1).
   struct Sorted {
@@ -80,17 +79,7 @@ class PairContacts {
     double tau;
     uint32_t i, j;
   };
-  /// A particle at the start of the step: position, velocity (0 if pinned), radius, inverse
-  /// mass.
-  struct Start {
-    double x, y, vx, vy, r, w;
-  };
-  /// The box Start p sweeps over dt, grown by its radius.
-  static Box swept_box(const Start& p, double dt) {
-    const double px = p.x + dt * p.vx, py = p.y + dt * p.vy;
-    return {std::min(p.x, px) - p.r, std::max(p.x, px) + p.r, std::min(p.y, py) - p.r,
-            std::max(p.y, py) + p.r};
-  }
+  using Start = PairStart;
   /// Where a particle is along its straight path: at xr at time tr, velocity vc; its
   /// radius and inverse mass.
   struct Ref {
@@ -121,9 +110,6 @@ class PairContacts {
   void move_in_list(double dt, bool threads);
   /// The hits among the listed pairs: swept boxes that overlap, meeting within the step.
   void scan_list(const MutableState& s, double dt, bool threads);
-  /// A listed pair in the scan: candidate or not, and left for the root or not.
-  static inline unsigned look(const Start& P, const Start& Q, const Box& A, double dt,
-                              unsigned& candidate);
   /// The hits among k pairs (ni[m], nj[m]) into out (pair_list.cpp).
   void times_of_impact(const uint32_t* ni, const uint32_t* nj, std::size_t k, double dt,
                        std::vector<Hit>& out) const;

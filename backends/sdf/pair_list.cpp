@@ -344,25 +344,7 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
 // relative margin of 1e-6 the root is beyond dt by more than the rounding of the formula's
 // c / (-b + sqrt(b^2 - a c)) (a few ulps, 2e-8 relatively where b^2 - a c cancels), so the
 // pair is no hit. (The computed root's denominator is at most 2 |b|, so a root the rounding
-// makes real is beyond dt too.)
-/// One listed pair (P, Q; A is P's swept box) as the scan sees it: whether it is a candidate
-/// (closed swept boxes that overlap, not both pinned), and
-/// whether it is one the bound above leaves for the root.
-[[gnu::always_inline]] inline unsigned PairContacts::look(const Start& P, const Start& Q,
-                                                          const Box& A, double dt,
-                                                          unsigned& candidate) {
-  const Box B = swept_box(Q, dt);
-  candidate = static_cast<unsigned>(A.x0 <= B.x1) & static_cast<unsigned>(B.x0 <= A.x1) &
-              static_cast<unsigned>(A.y0 <= B.y1) & static_cast<unsigned>(B.y0 <= A.y1) &
-              static_cast<unsigned>(P.w != 0.0 || Q.w != 0.0);
-  const double dx = P.x - Q.x, dy = P.y - Q.y, dvx = P.vx - Q.vx, dvy = P.vy - Q.vy;
-  const double rr = P.r + Q.r;
-  const double qb = dx * dvx + dy * dvy, qc = (dx * dx + dy * dy) - rr * rr;
-  const double reach = 2.0 * qb * dt;  // <= 0 when approaching
-  const unsigned beyond =
-      static_cast<unsigned>(qc > 0.0) & static_cast<unsigned>(qc + reach > 1e-6 * (qc - reach));
-  return candidate & static_cast<unsigned>(qb < 0.0) & (beyond ^ 1u);
-}
+// makes real is beyond dt too.) The box test and the bound: look() (pair_look.hpp).
 
 // The time of impact of each pair (ni[m], nj[m]) left by look(), as toi_refs gives it at
 // tau0 = 0 (reference times 0): touching (and approaching) gives 0, else the first root
@@ -406,9 +388,8 @@ void PairContacts::scan_list(const MutableState& s, double dt, bool threads) {
     for (std::size_t m = 0; m < count; ++m) {
       const uint32_t i = pairs[m].first, j = pairs[m].second;
       if (j == i) continue;  // retired
-      const Start& P = p[i];
       unsigned candidate = 0;
-      const unsigned left = look(P, p[j], swept_box(P, dt), dt, candidate);
+      const unsigned left = look(p[i], p[j], dt, candidate);
       ni[k] = i;
       nj[k] = j;
       candidates += candidate;
