@@ -107,7 +107,10 @@ class PairContacts {
   Box enlarged(std::size_t i, double dt) const;
   /// The leavers with new enlarged boxes in the kept list: their listed pairs retired, their
   /// pairs with the new boxes found among all particles' boxes.
-  void move_in_list(double dt, bool threads);
+  void move_in_list(double dt);
+  /// f(j) for each particle j whose box in the build's grid may overlap box b.
+  template <class F>
+  void in_grid(const Box& b, F&& f) const;
   /// The hits among the listed pairs: swept boxes that overlap, meeting within the step.
   void scan_list(const MutableState& s, double dt, bool threads);
   /// The hits among k pairs (ni[m], nj[m]) into out (pair_list.cpp).
@@ -135,8 +138,11 @@ class PairContacts {
   std::vector<std::vector<uint32_t>> chunk_leavers_;  ///< per particle chunk: boxes outside
   std::vector<uint32_t> leavers_;  ///< this step's particles outside their fat boxes
   std::vector<std::pair<uint32_t, uint32_t>> extra_;  ///< pairs (i < j) of moved particles
-  std::vector<Box> old_fat_;                          ///< move_in_list(): the leavers' boxes before
-  std::vector<std::size_t> chunk_dead_;               ///< move_in_list(): entries retired per chunk
+  std::vector<char> moved_;          ///< per particle: given a new box since the build
+  std::vector<uint32_t> moved_ids_;  ///< those particles
+  std::vector<char> leaving_;        ///< per particle: a leaver in this step (move_in_list)
+  double grid_x0_ = 0.0, grid_y0_ = 0.0, grid_h_ = 0.0;  ///< the build's grid: origin, cell
+  std::size_t grid_nx_ = 0, grid_ny_ = 0;                ///< and cells (0: none)
   std::size_t dead_ = 0;        ///< list_ entries retired (a particle's own index)
   std::size_t steps_kept_ = 0;  ///< steps since the list was built
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> chunk_pairs_;

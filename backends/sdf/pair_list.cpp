@@ -24,8 +24,12 @@ constexpr uint32_t kNoCell = ~0u;
 constexpr double kAhead = 8.0;
 constexpr double kSkin = 0.125;
 /// The most particles outside their enlarged boxes that a step gives new boxes in place
-/// (together one pass over all the boxes); more build the list anew.
+/// (each looks for its pairs in the build's grid and among the particles moved before); more
+/// build the list anew, as do more than (n + kMovedFloor) / kMovedShare particles moved since
+/// the build (each leaver compares its box with all of those).
 constexpr std::size_t kMoves = 32;
+constexpr std::size_t kMovedShare = 8;
+constexpr std::size_t kMovedFloor = 1024;
 /// Steps after which a kept list is built anew all the same (its boxes may have been grown
 /// for motion that has since stopped; a build costs about as much as 3 steps of the scan).
 constexpr std::size_t kKeep = 128;
@@ -59,17 +63,19 @@ void chunked(bool threads, std::size_t n, std::size_t chunk, Body&& body,
 // and while each swept box lies inside its particle's enlarged box two swept boxes that
 // overlap belong to such a pair. A particle whose swept box is not inside gets a new
 // enlarged box: up to kMoves of them in place (move_in_list), more (or a new particle count,
-// or no list yet, or a list grown a quarter larger by such moves, or one kept kKeep steps:
-// boxes grown for motion that has since stopped) build the list anew.
+// or no list yet, or a list grown a quarter larger by such moves, or an eighth of the
+// particles moved, or one kept kKeep steps: boxes grown for motion that has since stopped)
+// build the list anew.
 void PairContacts::find_hits(const MutableState& s, double dt, bool threads) {
   const bool kept = sweep(s, dt, threads);
   counts_.rebuilt = !kept || leavers_.size() > kMoves || steps_kept_ >= kKeep ||
-                    4 * (dead_ + extra_.size()) > list_.size() + 256;
+                    4 * (dead_ + extra_.size()) > list_.size() + 256 ||
+                    kMovedShare * (moved_ids_.size() + leavers_.size()) > listed_n_ + kMovedFloor;
   steps_kept_ = counts_.rebuilt ? 0 : steps_kept_ + 1;
   if (counts_.rebuilt) {
     build_list(s, dt, threads);
   } else if (!leavers_.empty()) {
-    move_in_list(dt, threads);
+    move_in_list(dt);
     counts_.moved = leavers_.size();
   }
   counts_.listed = list_.size() - dead_ + extra_.size();
@@ -128,59 +134,71 @@ PairContacts::Box PairContacts::enlarged(std::size_t i, double dt) const {
 // The list is then: its entries not retired (pairs whose boxes are those of the last build)
 // and extra_ (every pair with a moved particle whose boxes overlap now). A retired entry
 // holds its own run's particle, a pair the scan never takes. A leaver's entries are those in
-// its own run and, in the runs of lower particles that did not move, those whose box met the
-// leaver's old box (if the leaver moved before they are retired already). One pass over
-// all particles for all the leavers, in fixed chunks (each writes only its own particles'
-// runs and its own extra pairs).
-void PairContacts::move_in_list(double dt, bool threads) {
-  const std::size_t n = listed_n_, moves = leavers_.size();
-  old_fat_.resize(moves);
-  for (std::size_t m = 0; m < moves; ++m) {
-    const uint32_t i = leavers_[m];
-    old_fat_[m] = fat_[i];
-    fat_[i] = enlarged(i, dt);
+// its own run and, if it has not moved since the build, those in the runs of the lower
+// particles whose box met its build box (a moved particle's runs are retired already): found
+// in the build's grid. Its new pairs are with the particles that have not moved (their boxes
+// are in the grid) and those that have (moved_ids_), a pair of two leavers once.
+void PairContacts::move_in_list(double dt) {
+  for (const uint32_t i : leavers_) leaving_[i] = 1;
+  std::erase_if(extra_, [&](const auto& p) { return leaving_[p.first] || leaving_[p.second]; });
+  for (const uint32_t i : leavers_) {
     for (uint32_t k = list_start_[i]; k < list_start_[i + 1]; ++k)
       if (list_[k].second != i) {
         list_[k].second = i;
         ++dead_;
       }
+    const Box old = fat_[i];
+    if (moved_[i] == 0 && !std::isnan(old.x0))
+      in_grid(old, [&](uint32_t j) {
+        if (j >= i || moved_[j] != 0 || leaving_[j] != 0) return;
+        for (uint32_t k = list_start_[j]; k < list_start_[j + 1]; ++k)
+          if (list_[k].second == i) {
+            list_[k].second = j;
+            ++dead_;
+          }
+      });
+    fat_[i] = enlarged(i, dt);
   }
-  auto leaver = [&](uint32_t j) { return std::binary_search(leavers_.begin(), leavers_.end(), j); };
-  std::erase_if(extra_, [&](const auto& p) { return leaver(p.first) || leaver(p.second); });
-  const std::size_t chunks = chunk_count(n, kParticles);
-  chunk_pairs_.resize(std::max(chunk_pairs_.size(), chunks));
-  chunk_dead_.assign(chunks, 0);
-  auto pass = [&](std::size_t c, std::size_t b, std::size_t end) {
-    auto& out = chunk_pairs_[c];
-    out.clear();
-    std::size_t dead = 0;
-    for (std::size_t j = b; j < end; ++j) {
-      const Box& f = fat_[j];
-      if (std::isnan(f.x0)) continue;
-      const auto jd = static_cast<uint32_t>(j);
-      const bool moved = leaver(jd);
-      for (std::size_t m = 0; m < moves; ++m) {
-        const uint32_t i = leavers_[m];
-        if (i == jd) continue;
-        const Box& old = old_fat_[m];
-        if (!moved && jd < i && !std::isnan(old.x0) && overlap(old, f))
-          for (uint32_t k = list_start_[j]; k < list_start_[j + 1]; ++k)
-            if (list_[k].second == i) {
-              list_[k].second = jd;
-              ++dead;
-            }
-        // a pair of two leavers once, from the higher one's side
-        const Box& now = fat_[i];
-        if ((!moved || jd < i) && !std::isnan(now.x0) && overlap(now, f))
-          out.emplace_back(std::min(i, jd), std::max(i, jd));
-      }
+  auto pair = [&](uint32_t i, uint32_t j) { extra_.emplace_back(std::min(i, j), std::max(i, j)); };
+  for (const uint32_t i : leavers_) {
+    const Box& now = fat_[i];
+    if (std::isnan(now.x0)) continue;
+    in_grid(now, [&](uint32_t j) {
+      if (moved_[j] == 0 && leaving_[j] == 0 && overlap(now, fat_[j])) pair(i, j);
+    });
+    for (const uint32_t j : moved_ids_)
+      if (leaving_[j] == 0 && !std::isnan(fat_[j].x0) && overlap(now, fat_[j])) pair(i, j);
+    for (const uint32_t j : leavers_) {
+      if (j >= i) break;  // (in increasing order)
+      if (!std::isnan(fat_[j].x0) && overlap(now, fat_[j])) pair(i, j);
     }
-    chunk_dead_[c] = dead;
+  }
+  for (const uint32_t i : leavers_) {
+    leaving_[i] = 0;
+    if (moved_[i] == 0) moved_ids_.push_back(i);
+    moved_[i] = 1;
+  }
+}
+
+// Calls f(j) for each particle j whose box in the build's grid may overlap box b (finite):
+// its home cell (that of its lower corner, at most the cell size below b's) within the cells
+// of [b.x0 - h, b.x1] x [b.y0 - h, b.y1], one more on each side for rounding.
+template <class F>
+void PairContacts::in_grid(const Box& b, F&& f) const {
+  if (grid_nx_ == 0) return;
+  const double h = grid_h_;
+  auto range = [h](double lo, double hi, double origin, std::size_t cells) {
+    const double top = static_cast<double>(cells - 1);
+    const double c0 = std::clamp(std::floor((lo - h - origin) / h) - 1.0, 0.0, top);
+    const double c1 = std::clamp(std::floor((hi - origin) / h) + 1.0, 0.0, top);
+    return std::pair{static_cast<std::size_t>(c0), static_cast<std::size_t>(c1)};
   };
-  chunked(threads, n, kParticles, pass, Schedule::Even);
-  for (std::size_t c = 0; c < chunks; ++c) {
-    dead_ += chunk_dead_[c];
-    extra_.insert(extra_.end(), chunk_pairs_[c].begin(), chunk_pairs_[c].end());
+  const auto [cx0, cx1] = range(b.x0, b.x1, grid_x0_, grid_nx_);
+  const auto [cy0, cy1] = range(b.y0, b.y1, grid_y0_, grid_ny_);
+  for (std::size_t cx = cx0; cx <= cx1; ++cx) {
+    const std::size_t first = cx * grid_ny_;
+    for (uint32_t q = cell_start_[first + cy0]; q < cell_start_[first + cy1 + 1]; ++q)
+      f(sorted_[q].id);
   }
 }
 
@@ -193,6 +211,10 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
   extra_.clear();
   dead_ = 0;
   listed_n_ = n;
+  moved_.assign(n, 0);
+  leaving_.assign(n, 0);
+  moved_ids_.clear();
+  grid_nx_ = 0;
   // Enlarged boxes; bounds and the largest extent of the finite ones (min and max are
   // exact, so per-chunk partials combine to the same values in any order).
   struct Extent {
@@ -240,6 +262,11 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
   const auto nx = static_cast<std::size_t>(std::floor(w / h)) + 1;
   const auto ny = static_cast<std::size_t>(std::floor(hgt / h)) + 1;
   const std::size_t cells = nx * ny;
+  grid_x0_ = all.x0;
+  grid_y0_ = all.y0;
+  grid_h_ = h;
+  grid_nx_ = nx;
+  grid_ny_ = ny;
   // Counting sort of the boxes by home cell, cells column by column (cell cx ny + cy), in
   // increasing particle index within a cell: a cell and the one above it, and the three
   // cells of the next column beside them, are each one contiguous run.

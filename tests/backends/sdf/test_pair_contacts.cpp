@@ -379,6 +379,39 @@ TEST_CASE("pair contacts: a particle that leaves its listed box on any one side 
   }
 }
 
+TEST_CASE("pair contacts: two particles that leave their boxes in one step meet once") {
+  // Three balls at rest far apart (none listed); then two are put against each other,
+  // approaching, and the third moves beside them: all leave their listed boxes in the same
+  // step and get new ones in place. The pair of the two must be listed once (one candidate,
+  // one hit), as the all-pairs loop sees it; and again a step later, when one of them has
+  // moved before and the other leaves again.
+  const double dt = 1e-3;
+  Balls b;
+  b.x = {0.0, 0.0, 0.3, 0.0, 0.0, 0.3};
+  b.v = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+  b.w = {1.0, 1.0, 1.0};
+  b.r = {0.01, 0.01, 0.01};
+  PairContacts pc;
+  require_same(reference(b, 0.0, dt, 1.0), scheduled(b, 0.0, dt, 1.0, false, pc));
+  REQUIRE(pc.counts().listed == 0);
+  b.x = {0.1, 0.0, 0.1201, 0.0, 0.1, 0.05};
+  b.v = {0.1, 0.0, -0.1, 0.0, 0.0, -0.1};
+  Result ref = reference(b, dt, dt, 1.0);
+  REQUIRE(ref.candidates == 1);
+  REQUIRE(ref.events.size() == 1);
+  require_same(ref, scheduled(b, dt, dt, 1.0, false, pc));
+  CHECK(pc.counts().moved == 3);
+  CHECK(!pc.counts().rebuilt);
+  // ball 1 leaves again toward ball 0 (moved before, now in place): one pair again
+  b.x = {0.1, 0.0, 0.1201, 0.0, 0.1, 0.05};
+  b.v = {0.0, 0.0, -5.0, 0.0, 0.0, 0.0};
+  ref = reference(b, 2 * dt, dt, 1.0);
+  REQUIRE(ref.candidates == 1);
+  require_same(ref, scheduled(b, 2 * dt, dt, 1.0, false, pc));
+  CHECK(pc.counts().moved >= 1);
+  CHECK(!pc.counts().rebuilt);
+}
+
 TEST_CASE("pair contacts: a list kept for 128 steps is built anew, with the same hits") {
   // Balls at rest in a touching row, pushed together every step: nothing leaves its box,
   // so the list would be kept for ever; after 128 steps it is built anew all the same (boxes
