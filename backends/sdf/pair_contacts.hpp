@@ -106,7 +106,7 @@ class PairContacts {
   /// Particle i's enlarged box (NaN: no finite swept box, left out of the list).
   Box enlarged(std::size_t i, double dt) const;
   /// The leavers with new enlarged boxes in the kept list: their listed pairs retired, their
-  /// pairs with the new boxes found among all particles' boxes.
+  /// pairs with the new boxes found in the build's grid and among the particles moved before.
   void move_in_list(double dt);
   /// f(j) for each particle j whose box in the build's grid may overlap box b.
   template <class F>

@@ -334,10 +334,12 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
   // finds the hits that touch at the start in the order order_hits puts them in).
   std::size_t found = 0;
   for (const auto& pairs : chunk_pairs_) found += pairs.size();
-  if (found > std::numeric_limits<uint32_t>::max())
+  if (found > std::numeric_limits<uint32_t>::max()) {
+    listed_n_ = kNoList;  // no list: the next step builds again
     throw Error("sdf backend: " + std::to_string(found) +
                 " pairs of particles within reach of each other, more than the pair contacts "
                 "can list (4294967295)");
+  }
   for (const auto& pairs : chunk_pairs_)
     for (const auto& [i, j] : pairs) ++list_start_[i + 1];
   for (std::size_t i = 0; i < n; ++i) list_start_[i + 1] += list_start_[i];

@@ -54,9 +54,8 @@ struct PairFigures {
 
 #if PINSIM_PAIR_LOOK_PACKED
 /// figures_scalar on pairs of doubles: the same operations on each coordinate (a product or
-/// a sum of two doubles is one rounding either way; min and max differ from std::min and
-/// std::max only in the sign of a zero, which the radius subtracted or added and the
-/// comparisons do not see).
+/// a sum of two doubles is one rounding either way; minpd and maxpd with their operands
+/// swapped pick what std::min and std::max pick, ties and NaN included).
 [[gnu::always_inline]] inline PairFigures figures_packed(const PairStart& P, const PairStart& Q,
                                                          double dt) {
   const __m128d vdt = _mm_set1_pd(dt);
@@ -64,8 +63,8 @@ struct PairFigures {
   const __m128d qx = _mm_loadu_pd(&Q.x), qv = _mm_loadu_pd(&Q.vx);
   const __m128d pr = _mm_set1_pd(P.r), qr = _mm_set1_pd(Q.r);
   const __m128d pe = _mm_add_pd(px, _mm_mul_pd(vdt, pv)), qe = _mm_add_pd(qx, _mm_mul_pd(vdt, qv));
-  const __m128d alo = _mm_sub_pd(_mm_min_pd(px, pe), pr), ahi = _mm_add_pd(_mm_max_pd(px, pe), pr);
-  const __m128d blo = _mm_sub_pd(_mm_min_pd(qx, qe), qr), bhi = _mm_add_pd(_mm_max_pd(qx, qe), qr);
+  const __m128d alo = _mm_sub_pd(_mm_min_pd(pe, px), pr), ahi = _mm_add_pd(_mm_max_pd(pe, px), pr);
+  const __m128d blo = _mm_sub_pd(_mm_min_pd(qe, qx), qr), bhi = _mm_add_pd(_mm_max_pd(qe, qx), qr);
   const int overlap = _mm_movemask_pd(_mm_and_pd(_mm_cmple_pd(alo, bhi), _mm_cmple_pd(blo, ahi)));
   const __m128d d = _mm_sub_pd(px, qx), dv = _mm_sub_pd(pv, qv);
   const __m128d b2 = _mm_mul_pd(d, dv), c2 = _mm_mul_pd(d, d);
