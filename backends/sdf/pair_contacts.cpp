@@ -34,12 +34,13 @@ constexpr uint32_t kIslandTask = 256;
 //    wave is one after the last wave of either particle's earlier hits: a greedy colouring
 //    of the contact graph in time order), the hits of a wave share no particle and run at
 //    once, waves one after another.
-// 4. collect: each particle's velocity changes in order, and the events in order of
+// 4. collect: each particle's velocity changes in order; emit_events: the events in order of
 //    (tau, i, j), as one serial loop over the sorted hits would give.
 void PairContacts::schedule(const MutableState& s, double dt, double e, bool threads, EventSink& ev,
                             DriftRecorder* tape) {
   find(s, dt, threads, tape);
-  resolve_found(s, dt, e, threads, ev);
+  resolve_found(s, dt, e, threads);
+  emit_events(ev);
 }
 
 void PairContacts::find(const MutableState& s, double dt, bool threads, DriftRecorder* tape) {
@@ -52,12 +53,11 @@ void PairContacts::find(const MutableState& s, double dt, bool threads, DriftRec
   for (const Hit& h : hits_) in_hit_[h.i] = in_hit_[h.j] = 1;
 }
 
-void PairContacts::resolve_found(const MutableState& s, double dt, double e, bool threads,
-                                 EventSink& ev) {
+void PairContacts::resolve_found(const MutableState& s, double dt, double e, bool threads) {
   if (tape_ != nullptr) threads = false;
   order_hits(threads, dt);
   resolve(s, dt, e, threads);
-  collect(s, ev);
+  collect(s);
 }
 
 // The keys (tau, i, j) are unique, so any correct sort gives the same order. A counting sort
@@ -274,7 +274,7 @@ bool PairContacts::resolve_islands(const MutableState& s, double dt, double e) {
   return true;
 }
 
-void PairContacts::collect(const MutableState& s, EventSink& ev) {
+void PairContacts::collect(const MutableState& s) {
   const std::size_t n = s.n;  // (change_start_ counted by resolve_hit)
   for (std::size_t i = 0; i < n; ++i) change_start_[i + 1] += change_start_[i];
   changes_.resize(change_start_[n]);
@@ -287,11 +287,18 @@ void PairContacts::collect(const MutableState& s, EventSink& ev) {
     if (o.i_moves) changes_[fill[hit.i]++] = {o.tau, o.ai * o.nrm};
     if (o.j_moves) changes_[fill[hit.j]++] = {o.tau, o.aj * o.nrm};
     ++counts_.impulses;
+  }
+}
+
+void PairContacts::emit_events(EventSink& ev) const {
+  for (std::size_t h = 0; h < hits_.size(); ++h) {
+    const Outcome& o = outcome_[h];
+    if (!o.fired) continue;
     pinsim_event event{};
     event.t = sim_t_ + o.tau;
-    event.particle = hit.i;
+    event.particle = hits_[h].i;
     event.obstacle = -1;
-    event.other = hit.j;
+    event.other = hits_[h].j;
     event.point[0] = o.point.x();
     event.point[1] = o.point.y();
     event.normal[0] = o.nrm.x();

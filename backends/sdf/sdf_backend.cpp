@@ -456,7 +456,6 @@ void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, Event
   chunk_stats_.assign(chunks, SdfStats{});
   chunk_events_.resize(chunks);
   late_events_.resize(chunks);
-  pair_events_.clear();
   auto march_chunks = [&](bool in_hits, std::vector<std::vector<pinsim_event>>& events) {
     for_chunks(s.n, kChunk, [&](std::size_t c, std::size_t b, std::size_t e) {
       events[c].clear();
@@ -475,16 +474,11 @@ void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, Event
   };
   // (the hits on one thread beside the marches: with two threads the other is marching; from
   // three, their waves may use the rest)
-  run_both(
-      [&] {
-        const pinsim_event_sink to{&pair_events_, &push_event};
-        EventSink sink(&to);
-        pairs_.resolve_found(s, dt, particle_e_, available_threads() > 2, sink);
-      },
-      [&] { march_chunks(false, chunk_events_); });
+  run_both([&] { pairs_.resolve_found(s, dt, particle_e_, available_threads() > 2); },
+           [&] { march_chunks(false, chunk_events_); });
   stats_.pair_contacts += pairs_.counts().impulses;
   march_chunks(true, late_events_);
-  for (const pinsim_event& e : pair_events_) ev.emit(e);
+  pairs_.emit_events(ev);  // (made here, off the resolution's path beside the marches)
   const auto by_particle = [](const pinsim_event& a, const pinsim_event& b) {
     return a.particle < b.particle;
   };
