@@ -446,7 +446,8 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
 // A particle in no hit of the step gets no velocity change from the pair contacts, so its
 // march (march_or_reuse, as in the serial loop) does not wait for them: those are marched in
 // fixed chunks while the hits are ordered and resolved (their events kept apart), then the
-// particles in hits, in the same chunks. The pair events are emitted first, then each chunk's
+// particles in hits, in the same chunks, while the pair events are made (from the resolved
+// hits, read only). The pair events are emitted first, then each chunk's
 // two event lists merged by particle (each is in particle order, and a particle is in one):
 // the order of the serial loop, for any thread count.
 void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, EventSink& ev) {
@@ -477,8 +478,9 @@ void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, Event
   run_both([&] { pairs_.resolve_found(s, dt, particle_e_, available_threads() > 2); },
            [&] { march_chunks(false, chunk_events_); });
   stats_.pair_contacts += pairs_.counts().impulses;
-  march_chunks(true, late_events_);
-  pairs_.emit_events(ev);  // (made here, off the resolution's path beside the marches)
+  pair_events_.clear();
+  run_both([&] { pairs_.append_events(pair_events_); }, [&] { march_chunks(true, late_events_); });
+  for (const pinsim_event& e : pair_events_) ev.emit(e);
   const auto by_particle = [](const pinsim_event& a, const pinsim_event& b) {
     return a.particle < b.particle;
   };

@@ -110,6 +110,7 @@ class SdfBackend : public FieldBackend {
   std::vector<SdfStats> chunk_stats_;                    ///< per chunk, this step
   std::vector<std::vector<pinsim_event>> chunk_events_;  ///< per chunk, this step
   std::vector<std::vector<pinsim_event>> late_events_;   ///< per chunk: particles in hits
+  std::vector<pinsim_event> pair_events_;                ///< this step's pair contacts
 };
 
 }  // namespace pinsim::sdf
