@@ -290,30 +290,23 @@ void PairContacts::collect(const MutableState& s) {
   }
 }
 
-pinsim_event PairContacts::event(std::size_t h) const {
-  const Outcome& o = outcome_[h];
-  pinsim_event event{};
-  event.t = sim_t_ + o.tau;
-  event.particle = hits_[h].i;
-  event.obstacle = -1;
-  event.other = hits_[h].j;
-  event.point[0] = o.point.x();
-  event.point[1] = o.point.y();
-  event.normal[0] = o.nrm.x();
-  event.normal[1] = o.nrm.y();
-  event.vn_before = o.vn;
-  event.vn_after = o.vn_after;
-  return event;
-}
-
 void PairContacts::emit_events(EventSink& ev) const {
-  for (std::size_t h = 0; h < hits_.size(); ++h)
-    if (outcome_[h].fired) ev.emit(event(h));
-}
-
-void PairContacts::append_events(std::vector<pinsim_event>& out) const {
-  for (std::size_t h = 0; h < hits_.size(); ++h)
-    if (outcome_[h].fired) out.push_back(event(h));
+  for (std::size_t h = 0; h < hits_.size(); ++h) {
+    const Outcome& o = outcome_[h];
+    if (!o.fired) continue;
+    pinsim_event event{};
+    event.t = sim_t_ + o.tau;
+    event.particle = hits_[h].i;
+    event.obstacle = -1;
+    event.other = hits_[h].j;
+    event.point[0] = o.point.x();
+    event.point[1] = o.point.y();
+    event.normal[0] = o.nrm.x();
+    event.normal[1] = o.nrm.y();
+    event.vn_before = o.vn;
+    event.vn_after = o.vn_after;
+    ev.emit(event);
+  }
 }
 
 }  // namespace pinsim::sdf

@@ -47,12 +47,11 @@ class PairContacts {
                 DriftRecorder* tape = nullptr);
   /// schedule() in three parts, for a caller with other work between them: find() the
   /// step's hits (then in_hit(i) tells whether particle i may change in this step),
-  /// resolve_found() them (then changes(i) holds), then emit_events() or append_events()
-  /// (the events in order, any time before the next step).
+  /// resolve_found() them (then changes(i) holds), then emit_events() (the events in order,
+  /// any time before the next step).
   void find(const MutableState& s, double dt, bool threads, DriftRecorder* tape = nullptr);
   void resolve_found(const MutableState& s, double dt, double e, bool threads);
   void emit_events(EventSink& ev) const;
-  void append_events(std::vector<pinsim_event>& out) const;
   /// Whether particle i is in one of the hits find() found.
   bool in_hit(std::size_t i) const { return in_hit_[i] != 0; }
   /// No pair contacts in this step for particles 0..n-1 (changes(i) empty).
@@ -124,8 +123,6 @@ class PairContacts {
   void resolve(const MutableState& s, double dt, double e, bool threads);
   bool resolve_islands(const MutableState& s, double dt, double e);
   void collect(const MutableState& s);
-  /// The event of hit h (fired).
-  pinsim_event event(std::size_t h) const;
   /// Time of impact after tau0 of i and j moving linearly from their reference states.
   bool toi(uint32_t i, uint32_t j, double tau0, double dt, double& tau) const;
   /// The same from the two reference states and the sum of the radii rr.

@@ -357,6 +357,22 @@ void push_event(void* ctx, const pinsim_event* e) {
 }
 }  // namespace
 
+// Fixed chunks of kChunk particles, on threads: each chunk's events collected apart in
+// events[c] (in particle order), its counters added to chunk_stats_[c] once.
+template <class Particle>
+void SdfBackend::march_chunked(std::size_t n, Particle&& particle,
+                               std::vector<std::vector<pinsim_event>>& events) {
+  events.resize(chunk_count(n, kChunk));
+  for_chunks(n, kChunk, [&](std::size_t c, std::size_t b, std::size_t e) {
+    events[c].clear();
+    const pinsim_event_sink to{&events[c], &push_event};
+    EventSink sink(&to);
+    SdfStats st;  // counted here, stored once: chunks next to each other share cache lines
+    for (std::size_t i = b; i < e; ++i) particle(i, st, sink);
+    add(chunk_stats_[c], st);
+  });
+}
+
 std::size_t SdfBackend::too_fast(const MutableState& s, double dt, bool threads) {
   // the first particle of [b, e) with finite mass moving beyond the limit, else e
   const double* v = s.v.data();  // (plain pointers: no reloads of the maps' members)
@@ -428,15 +444,7 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   }
   const std::size_t chunks = chunk_count(s.n, kChunk);
   chunk_stats_.assign(chunks, SdfStats{});
-  chunk_events_.resize(chunks);
-  for_chunks(s.n, kChunk, [&](std::size_t c, std::size_t b, std::size_t e) {
-    chunk_events_[c].clear();
-    const pinsim_event_sink to{&chunk_events_[c], &push_event};
-    EventSink sink(&to);
-    SdfStats st;  // counted here, stored once: chunks next to each other share cache lines
-    for (std::size_t i = b; i < e; ++i) particle(i, st, sink);
-    chunk_stats_[c] = st;
-  });
+  march_chunked(s.n, particle, chunk_events_);
   for (std::size_t c = 0; c < chunks; ++c) {
     add(stats_, chunk_stats_[c]);
     for (const pinsim_event& e : chunk_events_[c]) ev.emit(e);
@@ -455,31 +463,25 @@ void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, Event
   rest_.resize(s.n);
   const std::size_t chunks = chunk_count(s.n, kChunk);
   chunk_stats_.assign(chunks, SdfStats{});
-  chunk_events_.resize(chunks);
-  late_events_.resize(chunks);
-  auto march_chunks = [&](bool in_hits, std::vector<std::vector<pinsim_event>>& events) {
-    for_chunks(s.n, kChunk, [&](std::size_t c, std::size_t b, std::size_t e) {
-      events[c].clear();
-      const pinsim_event_sink to{&events[c], &push_event};
-      EventSink sink(&to);
-      SdfStats st;
-      for (std::size_t i = b; i < e; ++i) {
-        if (!(s.inv_mass[i] > 0.0) || pairs_.in_hit(i) != in_hits) continue;
-        if (in_hits)
-          march_with_changes(i, s, t0, dt, st, sink);
-        else
-          march_or_reuse(i, s, t0, dt, st, sink);
-      }
-      add(chunk_stats_[c], st);
-    });
+  auto free_one = [&](std::size_t i, SdfStats& st, EventSink& sink) {
+    if (s.inv_mass[i] > 0.0 && !pairs_.in_hit(i)) march_or_reuse(i, s, t0, dt, st, sink);
+  };
+  auto hit_one = [&](std::size_t i, SdfStats& st, EventSink& sink) {
+    if (s.inv_mass[i] > 0.0 && pairs_.in_hit(i)) march_with_changes(i, s, t0, dt, st, sink);
   };
   // (the hits on one thread beside the marches: with two threads the other is marching; from
   // three, their waves may use the rest)
   run_both([&] { pairs_.resolve_found(s, dt, particle_e_, available_threads() > 2); },
-           [&] { march_chunks(false, chunk_events_); });
+           [&] { march_chunked(s.n, free_one, chunk_events_); });
   stats_.pair_contacts += pairs_.counts().impulses;
   pair_events_.clear();
-  run_both([&] { pairs_.append_events(pair_events_); }, [&] { march_chunks(true, late_events_); });
+  run_both(
+      [&] {
+        const pinsim_event_sink to{&pair_events_, &push_event};
+        EventSink sink(&to);
+        pairs_.emit_events(sink);
+      },
+      [&] { march_chunked(s.n, hit_one, late_events_); });
   for (const pinsim_event& e : pair_events_) ev.emit(e);
   const auto by_particle = [](const pinsim_event& a, const pinsim_event& b) {
     return a.particle < b.particle;

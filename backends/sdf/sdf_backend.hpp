@@ -81,6 +81,11 @@ class SdfBackend : public FieldBackend {
   /// The step on threads with pair contacts: the particles in no hit marched while the hits
   /// are resolved, then the others.
   void march_beside_pairs(MutableState& s, double t0, double dt, EventSink& ev);
+  /// particle(i, stats, sink) for particles 0..n-1 in fixed chunks on threads (events[c],
+  /// chunk_stats_[c]: per chunk).
+  template <class Particle>
+  void march_chunked(std::size_t n, Particle&& particle,
+                     std::vector<std::vector<pinsim_event>>& events);
 
   double depth_min_ = 1e-5;  ///< contact offset ("depthMin"), scene length
   double tol_ = 1e-6;        ///< march tolerance above the offset, scene length
