@@ -34,7 +34,8 @@ constexpr uint32_t kIslandTask = 256;
 //    wave is one after the last wave of either particle's earlier hits: a greedy colouring
 //    of the contact graph in time order), the hits of a wave share no particle and run at
 //    once, waves one after another.
-// 4. collect: each particle's velocity changes in order; emit_events: the events in order of
+// 4. each particle's velocity changes are a chain through the outcomes of its hits, linked as
+//    they are resolved (in order: a particle's hits are); emit_events: the events in order of
 //    (tau, i, j), as one serial loop over the sorted hits would give.
 void PairContacts::schedule(const MutableState& s, double dt, double e, bool threads, EventSink& ev,
                             DriftRecorder* tape) {
@@ -49,52 +50,68 @@ void PairContacts::find(const MutableState& s, double dt, bool threads, DriftRec
   tape_ = tape;
   if (tape_ != nullptr) threads = false;  // the tape takes the hits in their order
   find_hits(s, dt, threads);
+  // each particle in a hit: its reference state starts as its start state
   in_hit_.assign(s.n, 0);
-  for (const Hit& h : hits_) in_hit_[h.i] = in_hit_[h.j] = 1;
+  ref_.resize(s.n);
+  for (const Hit& h : hits_) {
+    in_hit_[h.i] = in_hit_[h.j] = 1;
+    for (const uint32_t p : {h.i, h.j}) {
+      const Start& q = start_[p];
+      ref_[p] = {Vec2(q.x, q.y), Vec2(q.vx, q.vy), 0.0, q.r, q.w};
+    }
+  }
 }
 
 void PairContacts::resolve_found(const MutableState& s, double dt, double e, bool threads) {
   if (tape_ != nullptr) threads = false;
   order_hits(threads, dt);
   resolve(s, dt, e, threads);
-  collect(s);
 }
 
-// The keys (tau, i, j) are unique, so any correct sort gives the same order. A counting sort
-// by a bucket of tau that never decreases with tau (tau = 0 alone in bucket 0, then
-// floor(tau B / dt) + 1, B = the number of hits), then each bucket sorted by the full key: a
-// few hits per bucket but those touching at the start (tau = 0).
+// The keys (tau, i, j) are unique, so any correct sort gives the same order. The hits that
+// touch at the start (tau = 0) come first, in order of (i, j) (sort_touching); then the others
+// (later_): a counting sort by a bucket of tau that never decreases with tau
+// (floor(tau B / dt), B = the number of them), then each bucket sorted by the full key.
 void PairContacts::order_hits(bool threads, double dt) {
   auto before = [](const Hit& a, const Hit& b) {
     return a.tau < b.tau || (a.tau == b.tau && (a.i < b.i || (a.i == b.i && a.j < b.j)));
   };
   const std::size_t hits = hits_.size();
-  if (hits < kBucketSort) {
-    std::sort(hits_.begin(), hits_.end(), before);
+  ordered_.resize(hits);
+  later_.resize(hits);
+  std::size_t touching = 0, apart = 0;
+  for (const Hit& h : hits_) {  // (tau >= 0: times_of_impact)
+    const bool is_later = h.tau > 0.0;
+    ordered_[touching] = h;
+    later_[apart] = h;
+    touching += static_cast<std::size_t>(!is_later);
+    apart += static_cast<std::size_t>(is_later);
+  }
+  sort_touching(touching);
+  Hit* const out = ordered_.data() + touching;
+  if (apart < kBucketSort) {
+    std::copy(later_.begin(), later_.begin() + static_cast<std::ptrdiff_t>(apart), out);
+    std::sort(out, out + apart, before);
+    hits_.swap(ordered_);
     return;
   }
-  const std::size_t buckets = hits + 1;
-  const double scale = static_cast<double>(hits) / dt;
+  const std::size_t buckets = apart;
+  const double scale = static_cast<double>(apart) / dt;
   auto bucket = [&](double tau) {
-    return tau > 0.0 ? std::min(hits, 1 + static_cast<std::size_t>(tau * scale)) : 0;
+    return std::min(apart - 1, static_cast<std::size_t>(tau * scale));
   };
   std::vector<uint32_t>& start = fill_;
   start.assign(buckets + 1, 0);
-  for (const Hit& h : hits_) ++start[bucket(h.tau) + 1];
+  for (std::size_t k = 0; k < apart; ++k) ++start[bucket(later_[k].tau) + 1];
   for (std::size_t k = 0; k < buckets; ++k) start[k + 1] += start[k];
   bucket_start_.assign(start.begin(), start.end());
-  ordered_.resize(hits);
-  for (const Hit& h : hits_) ordered_[start[bucket(h.tau)]++] = h;
+  for (std::size_t k = 0; k < apart; ++k) out[start[bucket(later_[k].tau)]++] = later_[k];
   // each bucket in order: insertion sort for a few hits, else std::sort; on threads, runs of
   // buckets of about kSortHits hits apart (each writes only its own buckets)
   auto sort_buckets = [&](std::size_t k0, std::size_t k1) {
-    if (k0 == 0 && k1 > 0) {
-      sort_touching();
-      k0 = 1;
-    }
     for (std::size_t k = k0; k < k1; ++k) {
-      Hit* b = ordered_.data() + bucket_start_[k];
-      Hit* e = ordered_.data() + bucket_start_[k + 1];
+      Hit* b = out + bucket_start_[k];
+      Hit* e = out + bucket_start_[k + 1];
       if (e - b > 16) {
         std::sort(b, e, before);
         continue;
@@ -103,8 +120,8 @@ void PairContacts::order_hits(bool threads, double dt) {
         for (Hit* q = p; q > b && before(*q, *(q - 1)); --q) std::swap(*q, *(q - 1));
     }
   };
-  if (threads && hits >= kParallelWave) {
-    const std::size_t parts = chunk_count(hits, kSortHits);
+  if (threads && apart >= kParallelWave) {
+    const std::size_t parts = chunk_count(apart, kSortHits);
     for_chunks(parts, 1, [&](std::size_t c, std::size_t, std::size_t) {
       // the buckets whose first hit falls in [c kSortHits, (c + 1) kSortHits)
       auto first = [&](std::size_t h) {
@@ -120,12 +137,12 @@ void PairContacts::order_hits(bool threads, double dt) {
   hits_.swap(ordered_);
 }
 
-// Bucket 0 of order_hits (tau = 0: the hits that touch at the start) in order of (i, j).
-// The scan finds them in that order from the list (its runs are in increasing order) and
-// appends those of the moved particles' pairs: those are sorted and merged in.
-void PairContacts::sort_touching() {
+// The first `count` hits of ordered_ (tau = 0: the hits that touch at the start) in order of
+// (i, j). The scan finds them in that order from the list (its runs are in increasing order)
+// and appends those of the moved particles' pairs: those are sorted and merged in.
+void PairContacts::sort_touching(std::size_t count) {
   Hit* b = ordered_.data();
-  Hit* e = b + bucket_start_[1];
+  Hit* e = b + count;
   auto by_pair = [](const Hit& p, const Hit& q) { return p.i < q.i || (p.i == q.i && p.j < q.j); };
   Hit* mid = std::is_sorted_until(b, e, by_pair);
   if (mid == e) return;
@@ -146,19 +163,19 @@ inline bool PairContacts::toi(uint32_t i, uint32_t j, double tau0, double dt, do
 // The impulse J = -(1 + e) vn / (w_i + w_j) along the normal n from j to i at the time of
 // impact (w: inverse masses, 0 for pinned particles), as velocity changes J w_i n and
 // -J w_j n; the reference states move to the contact.
-void PairContacts::resolve_hit(std::size_t h, double dt, double e) {
+bool PairContacts::resolve_hit(std::size_t h, double dt, double e) {
   const uint32_t i = hits_[h].i, j = hits_[h].j;
   Outcome& out = outcome_[h];
   out.fired = false;
   Ref &ri = ref_[i], &rj = ref_[j];
   double tau = 0.0;
-  if (!toi(i, j, std::max(ri.tr, rj.tr), dt, tau)) return;
+  if (!toi(i, j, std::max(ri.tr, rj.tr), dt, tau)) return false;
   const Vec2 pi = ri.xr + ri.vc * (tau - ri.tr), pj = rj.xr + rj.vc * (tau - rj.tr);
   const Vec2 dx = pi - pj;
   const double l = dx.norm();
   const Vec2 nrm = l > 0.0 ? Vec2(dx / l) : Vec2(0.0, 1.0);
   const double vn = (ri.vc - rj.vc).dot(nrm);
-  if (vn >= 0.0) return;
+  if (vn >= 0.0) return false;
   const double wi = ri.w, wj = rj.w;
   const double jn = -(1.0 + e) * vn / (wi + wj);
   const double ai = jn * wi, aj = -jn * wj;  // dv_i = ai n, dv_j = aj n
@@ -169,42 +186,32 @@ void PairContacts::resolve_hit(std::size_t h, double dt, double e) {
   ri.tr = rj.tr = tau;
   ri.vc += ai * nrm;
   rj.vc += aj * nrm;
-  change_start_[i + 1] += static_cast<std::size_t>(wi > 0.0);
-  change_start_[j + 1] += static_cast<std::size_t>(wj > 0.0);
-  out = {tau, ai, aj, nrm, pj + rj.r * nrm, vn, (ri.vc - rj.vc).dot(nrm), wi > 0.0, wj > 0.0, true};
+  out = {tau, ai, aj, nrm, pj + rj.r * nrm, vn, (ri.vc - rj.vc).dot(nrm), true};
+  if (wi > 0.0) link_change(i, 2 * h);
+  if (wj > 0.0) link_change(j, 2 * h + 1);
+  return true;
 }
 
 void PairContacts::resolve(const MutableState& s, double dt, double e, bool threads) {
   const std::size_t hits = hits_.size();
   outcome_.resize(hits);
-  change_start_.assign(s.n + 1, 0);  // resolve_hit counts each particle's changes
-  // Waves: a hit goes one wave after the last of its particles' earlier hits. On the way,
-  // each particle's reference state starts as its start state (at its first hit). (A pass of
-  // its own: its reads of the particles run ahead of the resolution's.)
-  last_level_.assign(s.n, 0);
-  level_of_.resize(hits);
-  ref_.resize(s.n);
-  auto start_ref = [&](uint32_t i) {
-    if (last_level_[i] != 0) return;
-    const Start& p = start_[i];
-    ref_[i] = {Vec2(p.x, p.y), Vec2(p.vx, p.vy), 0.0, p.r, p.w};
-  };
-  uint32_t levels = 0;
-  for (std::size_t h = 0; h < hits; ++h) {
-    const uint32_t i = hits_[h].i, j = hits_[h].j;
-    start_ref(i);
-    start_ref(j);
-    const uint32_t lv = std::max(last_level_[i], last_level_[j]);
-    last_level_[i] = last_level_[j] = lv + 1;
-    level_of_[h] = lv;
-    levels = std::max(levels, lv + 1);
-  }
-  counts_.levels = levels;
+  next_change_.resize(2 * hits);
+  first_change_.assign(s.n, kNoLink);
+  last_change_.assign(s.n, kNoLink);
+  // (ref_: the start states of the particles in hits, from find())
   if (!threads || hits < kParallelWave) {  // one thread: the order of the hits is a schedule
-    for (std::size_t h = 0; h < hits; ++h) resolve_hit(h, dt, e);
+    for (std::size_t h = 0; h < hits; ++h) counts_.impulses += resolve_hit(h, dt, e);
     return;
   }
-  if (resolve_islands(s, dt, e)) return;
+  if (!resolve_islands(s, dt, e)) resolve_waves(s.n, dt, e);
+  for (const Outcome& o : outcome_) counts_.impulses += o.fired;
+}
+
+// The hits in waves (assign_waves): those of a wave share no particle and run at once, on
+// threads when there are enough of them.
+void PairContacts::resolve_waves(std::size_t n, double dt, double e) {
+  const std::size_t hits = hits_.size();
+  const uint32_t levels = assign_waves(n);
   level_start_.assign(static_cast<std::size_t>(levels) + 1, 0);
   for (std::size_t h = 0; h < hits; ++h) ++level_start_[level_of_[h] + 1];
   for (std::size_t l = 0; l < levels; ++l) level_start_[l + 1] += level_start_[l];
@@ -225,6 +232,23 @@ void PairContacts::resolve(const MutableState& s, double dt, double e, bool thre
     else
       wave(0, 0, count);
   }
+}
+
+// Waves: a hit goes one wave after the last of its particles' earlier hits.
+uint32_t PairContacts::assign_waves(std::size_t n) {
+  const std::size_t hits = hits_.size();
+  last_level_.assign(n, 0);
+  level_of_.resize(hits);
+  uint32_t levels = 0;
+  for (std::size_t h = 0; h < hits; ++h) {
+    const uint32_t i = hits_[h].i, j = hits_[h].j;
+    const uint32_t lv = std::max(last_level_[i], last_level_[j]);
+    last_level_[i] = last_level_[j] = lv + 1;
+    level_of_[h] = lv;
+    levels = std::max(levels, lv + 1);
+  }
+  counts_.levels = levels;
+  return levels;
 }
 
 // Islands: the connected parts of the contact graph (particles joined by hits), by union-find
@@ -272,22 +296,6 @@ bool PairContacts::resolve_islands(const MutableState& s, double dt, double e) {
     for (uint32_t k = task_start_[t]; k < task_start_[t + 1]; ++k) resolve_hit(by_level_[k], dt, e);
   });
   return true;
-}
-
-void PairContacts::collect(const MutableState& s) {
-  const std::size_t n = s.n;  // (change_start_ counted by resolve_hit)
-  for (std::size_t i = 0; i < n; ++i) change_start_[i + 1] += change_start_[i];
-  changes_.resize(change_start_[n]);
-  std::vector<std::size_t>& fill = fill_changes_;
-  fill.assign(change_start_.begin(), change_start_.end() - 1);
-  for (std::size_t h = 0; h < hits_.size(); ++h) {
-    const Outcome& o = outcome_[h];
-    if (!o.fired) continue;
-    const Hit& hit = hits_[h];
-    if (o.i_moves) changes_[fill[hit.i]++] = {o.tau, o.ai * o.nrm};
-    if (o.j_moves) changes_[fill[hit.j]++] = {o.tau, o.aj * o.nrm};
-    ++counts_.impulses;
-  }
 }
 
 void PairContacts::emit_events(EventSink& ev) const {

@@ -9,8 +9,8 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <iterator>
 #include <pinsim/plugin.hpp>
-#include <span>
 #include <utility>
 #include <vector>
 
@@ -31,7 +31,7 @@ class PairContacts {
     std::size_t candidates = 0;      ///< pairs whose swept boxes overlap
     std::size_t hits = 0;            ///< of them, pairs that meet within the step at first sight
     std::size_t impulses = 0;        ///< impulses applied (events emitted)
-    std::size_t levels = 0;          ///< waves of hits sharing no particle (see schedule())
+    std::size_t levels = 0;          ///< waves of hits sharing no particle (on threads only)
     std::size_t largest_island = 0;  ///< hits of the largest island (on threads only)
     std::size_t listed = 0;          ///< pairs in the list of nearby pairs
     bool rebuilt = false;            ///< whether this step built that list anew
@@ -55,16 +55,12 @@ class PairContacts {
   /// Whether particle i is in one of the hits find() found.
   bool in_hit(std::size_t i) const { return in_hit_[i] != 0; }
   /// No pair contacts in this step for particles 0..n-1 (changes(i) empty).
-  void clear(std::size_t n) {
-    change_start_.assign(n + 1, 0);
-    changes_.clear();
-  }
+  void clear(std::size_t n) { first_change_.assign(n, kNoLink); }
+  class ChangeRange;
   /// Particle i's velocity changes in this step, in order of time.
-  std::span<const Change> changes(std::size_t i) const {
-    return {changes_.data() + change_start_[i], changes_.data() + change_start_[i + 1]};
-  }
+  ChangeRange changes(std::size_t i) const;
   /// Whether particle i has a velocity change in this step.
-  bool changed(std::size_t i) const { return change_start_[i + 1] != change_start_[i]; }
+  bool changed(std::size_t i) const { return first_change_[i] != kNoLink; }
   const Counts& counts() const { return counts_; }
 
  private:
@@ -94,10 +90,22 @@ class PairContacts {
     double tau, ai, aj;
     Vec2 nrm, point;  ///< normal from j to i, contact point
     double vn, vn_after;
-    bool i_moves, j_moves, fired;
+    bool fired;
   };
 
   static constexpr std::size_t kNoList = ~std::size_t{0};
+  /// A particle's velocity changes are a chain through the outcomes of its hits that fired:
+  /// link 2 h is hit h's change of its particle i, 2 h + 1 that of j (kNoLink: none).
+  static constexpr std::size_t kNoLink = ~std::size_t{0};
+  /// Appends link k (a change at hit h) to particle p's chain.
+  void link_change(uint32_t p, std::size_t k) {
+    next_change_[k] = kNoLink;
+    if (last_change_[p] == kNoLink)
+      first_change_[p] = k;
+    else
+      next_change_[last_change_[p]] = k;
+    last_change_[p] = k;
+  }
 
   void find_hits(const MutableState& s, double dt, bool threads);
   /// The start states of the step and the particles whose swept box is not inside their
@@ -119,17 +127,20 @@ class PairContacts {
   void times_of_impact(const uint32_t* ni, const uint32_t* nj, std::size_t k, double dt,
                        std::vector<Hit>& out) const;
   void order_hits(bool threads, double dt);
-  void sort_touching();
+  void sort_touching(std::size_t count);
   void resolve(const MutableState& s, double dt, double e, bool threads);
+  void resolve_waves(std::size_t n, double dt, double e);
+  /// Each hit's wave (for the waves on threads); the number of waves.
+  uint32_t assign_waves(std::size_t n);
   bool resolve_islands(const MutableState& s, double dt, double e);
-  void collect(const MutableState& s);
   /// Time of impact after tau0 of i and j moving linearly from their reference states.
   bool toi(uint32_t i, uint32_t j, double tau0, double dt, double& tau) const;
   /// The same from the two reference states and the sum of the radii rr.
   static inline bool toi_refs(const Ref& ri, const Ref& rj, double rr, double tau0, double dt,
                               double& tau);
-  /// Resolves hit h from the reference states of its particles (updating them).
-  void resolve_hit(std::size_t h, double dt, double e);
+  /// Resolves hit h from the reference states of its particles (updating them and linking
+  /// their changes); whether it fired.
+  bool resolve_hit(std::size_t h, double dt, double e);
 
   std::vector<Start> start_;          ///< per particle: its start state
   std::vector<Ref> ref_;              ///< per particle in a hit: its reference state (resolve())
@@ -156,7 +167,8 @@ class PairContacts {
   std::vector<std::size_t> chunk_candidates_;
   std::vector<Hit> hits_;                  ///< in order of (tau, i, j)
   std::vector<char> in_hit_;               ///< per particle: in a hit of this step
-  std::vector<Hit> ordered_;               ///< order_hits()'s buckets
+  std::vector<Hit> ordered_;               ///< order_hits()'s result
+  std::vector<Hit> later_;                 ///< order_hits()'s hits apart at the start
   std::vector<uint32_t> bucket_start_;     ///< per bucket of order_hits(): first hit
   std::vector<Hit> touching_;              ///< sort_touching()'s merged hits
   std::vector<Outcome> outcome_;           ///< per hit
@@ -167,14 +179,58 @@ class PairContacts {
   std::vector<uint32_t> parent_;           ///< per particle: union-find parent
   std::vector<uint32_t> root_of_;          ///< per hit: its island's root particle
   std::vector<uint32_t> task_start_;       ///< per island task: first entry in by_level_
-  std::vector<std::size_t> change_start_;  ///< per particle (+1): first entry in changes_
-  std::vector<Change> changes_;
+  std::vector<std::size_t> first_change_;  ///< per particle: first link of its changes
+  std::vector<std::size_t> last_change_;   ///< per particle: last link so far (resolve())
+  std::vector<std::size_t> next_change_;   ///< per link: the next of its particle
   std::vector<uint32_t> fill_;             ///< counting sorts' next free entries
-  std::vector<std::size_t> fill_changes_;  ///< collect()'s next free entries
   Counts counts_;
   double sim_t_ = 0.0;
   DriftRecorder* tape_ = nullptr;  ///< this schedule's drift recorder, if any
 };
+
+/// Particle i's changes: a forward range over its chain of links.
+class PairContacts::ChangeRange {
+ public:
+  class iterator {
+   public:
+    using iterator_category = std::input_iterator_tag;
+    using value_type = Change;
+    using difference_type = std::ptrdiff_t;
+    using pointer = const Change*;
+    using reference = Change;
+    iterator(const PairContacts* pc, std::size_t k) : pc_(pc), k_(k) {}
+    Change operator*() const {
+      const Outcome& o = pc_->outcome_[k_ / 2];
+      return {o.tau, ((k_ & 1) != 0 ? o.aj : o.ai) * o.nrm};
+    }
+    iterator& operator++() {
+      k_ = pc_->next_change_[k_];
+      return *this;
+    }
+    iterator operator++(int) {
+      iterator before = *this;
+      ++*this;
+      return before;
+    }
+    bool operator==(const iterator& o) const { return k_ == o.k_; }
+
+   private:
+    const PairContacts* pc_;
+    std::size_t k_;
+  };
+  ChangeRange(const PairContacts* pc, std::size_t first) : pc_(pc), first_(first) {}
+  iterator begin() const { return {pc_, first_}; }
+  iterator end() const { return {pc_, kNoLink}; }
+  bool empty() const { return first_ == kNoLink; }
+
+ private:
+  const PairContacts* pc_;
+  std::size_t first_;
+};
+
+inline PairContacts::ChangeRange PairContacts::changes(std::size_t i) const {
+  return {this, first_change_[i]};
+}
 
 // (pair_contacts.cpp: the formula)
 inline bool PairContacts::toi_refs(const Ref& ri, const Ref& rj, double rr, double tau0, double dt,
