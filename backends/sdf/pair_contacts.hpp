@@ -122,7 +122,7 @@ class PairContacts {
   template <class F>
   void in_grid(const Box& b, F&& f) const;
   /// The hits among the listed pairs: swept boxes that overlap, meeting within the step.
-  void scan_list(const MutableState& s, double dt, bool threads);
+  void scan_list(double dt, bool threads);
   /// The hits among k pairs (ni[m], nj[m]) into out (pair_list.cpp).
   void times_of_impact(const uint32_t* ni, const uint32_t* nj, std::size_t k, double dt,
                        std::vector<Hit>& out) const;

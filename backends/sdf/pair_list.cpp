@@ -17,6 +17,8 @@ namespace {
 /// value gives the same bits).
 constexpr std::size_t kParticles = 1024;
 constexpr std::size_t kEntries = 512;
+/// Listed pairs per chunk of the scan (any value gives the same hits in the same order).
+constexpr std::size_t kScanEntries = 2048;
 constexpr uint32_t kNoCell = ~0u;
 /// A particle's enlarged box: its swept box, also swept kAhead steps further at its
 /// velocity, grown on every side by kSkin times the swept box's larger side. The larger they
@@ -79,7 +81,7 @@ void PairContacts::find_hits(const MutableState& s, double dt, bool threads) {
     counts_.moved = leavers_.size();
   }
   counts_.listed = list_.size() - dead_ + extra_.size();
-  scan_list(s, dt, threads);
+  scan_list(dt, threads);
 }
 
 // Start states, and the particles whose swept box is not inside their enlarged box (at most
@@ -363,7 +365,7 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
 
 // Each listed pair (i < j): candidates are the pairs whose closed swept boxes overlap (not
 // both pinned), hits those that meet within the step with the velocities at its start; in
-// fixed chunks of particles, then in chunk order (order_hits sorts them).
+// fixed chunks of the list, then in chunk order (order_hits sorts them).
 // Without branches on the outcome: first each listed pair's box test and a bound that
 // rules most candidates out without the root (below), counting the candidates and gathering
 // those left; then their times of impact as toi_refs gives them (the same bits).
@@ -400,9 +402,9 @@ void PairContacts::times_of_impact(const uint32_t* ni, const uint32_t* nj, std::
   out.resize(hits);
 }
 
-void PairContacts::scan_list(const MutableState& s, double dt, bool threads) {
-  const std::size_t n = s.n;
-  const std::size_t chunks = chunk_count(n, kParticles);
+void PairContacts::scan_list(double dt, bool threads) {
+  const std::size_t entries = list_.size();
+  const std::size_t chunks = chunk_count(entries, kScanEntries);
   chunk_hits_.resize(chunks + 1);
   chunk_candidates_.assign(chunks + 1, 0);
   chunk_near_.resize(std::max(chunk_near_.size(), chunks + 1));
@@ -427,8 +429,8 @@ void PairContacts::scan_list(const MutableState& s, double dt, bool threads) {
     chunk_candidates_[c] = candidates;
     times_of_impact(ni, nj, k, dt, chunk_hits_[c]);
   };
-  chunked(threads, n, kParticles, [&](std::size_t c, std::size_t b, std::size_t end) {
-    scan(c, list_.data() + list_start_[b], list_start_[end] - list_start_[b]);
+  chunked(threads, entries, kScanEntries, [&](std::size_t c, std::size_t b, std::size_t end) {
+    scan(c, list_.data() + b, end - b);
   });
   scan(chunks, extra_.data(), extra_.size());  // the moved particles' pairs, as one more chunk
   std::size_t total = 0;
