@@ -50,15 +50,12 @@ void PairContacts::find(const MutableState& s, double dt, bool threads, DriftRec
   tape_ = tape;
   if (tape_ != nullptr) threads = false;  // the tape takes the hits in their order
   find_hits(s, dt, threads);
-  // each particle in a hit: its reference state starts as its start state
+  // each particle in a hit: its reference state starts as its start state (at time 0)
   in_hit_.assign(s.n, 0);
-  ref_.resize(s.n);
+  ref_t_.resize(s.n);
   for (const Hit& h : hits_) {
     in_hit_[h.i] = in_hit_[h.j] = 1;
-    for (const uint32_t p : {h.i, h.j}) {
-      const Start& q = start_[p];
-      ref_[p] = {Vec2(q.x, q.y), Vec2(q.vx, q.vy), 0.0, q.r, q.w};
-    }
+    ref_t_[h.i] = ref_t_[h.j] = 0.0;
   }
 }
 
@@ -155,10 +152,7 @@ void PairContacts::sort_touching(std::size_t count) {
 // The time of impact of two discs in linear motion, |dx + dv tau| = r_i + r_j:
 // a tau^2 + 2 b tau + c = 0 with a = dv.dv, b = dx.dv, c = dx.dx - (r_i + r_j)^2, the first
 // root tau = (-b - sqrt(b^2 - a c)) / a written as c / (-b + sqrt(b^2 - a c)) (no
-// cancellation); already touching (c <= 0) and approaching: tau0.
-inline bool PairContacts::toi(uint32_t i, uint32_t j, double tau0, double dt, double& tau) const {
-  return toi_refs(ref_[i], ref_[j], ref_[i].r + ref_[j].r, tau0, dt, tau);
-}
+// cancellation); already touching (c <= 0) and approaching: tau0 (toi_refs).
 
 // The impulse J = -(1 + e) vn / (w_i + w_j) along the normal n from j to i at the time of
 // impact (w: inverse masses, 0 for pinned particles), as velocity changes J w_i n and
@@ -167,9 +161,11 @@ bool PairContacts::resolve_hit(std::size_t h, double dt, double e) {
   const uint32_t i = hits_[h].i, j = hits_[h].j;
   Outcome& out = outcome_[h];
   out.fired = false;
-  Ref &ri = ref_[i], &rj = ref_[j];
+  Start &P = start_[i], &Q = start_[j];
+  Ref ri{Vec2(P.x, P.y), Vec2(P.vx, P.vy), ref_t_[i], P.r, P.w};
+  Ref rj{Vec2(Q.x, Q.y), Vec2(Q.vx, Q.vy), ref_t_[j], Q.r, Q.w};
   double tau = 0.0;
-  if (!toi(i, j, std::max(ri.tr, rj.tr), dt, tau)) return false;
+  if (!toi_refs(ri, rj, ri.r + rj.r, std::max(ri.tr, rj.tr), dt, tau)) return false;
   const Vec2 pi = ri.xr + ri.vc * (tau - ri.tr), pj = rj.xr + rj.vc * (tau - rj.tr);
   const Vec2 dx = pi - pj;
   const double l = dx.norm();
@@ -181,11 +177,17 @@ bool PairContacts::resolve_hit(std::size_t h, double dt, double e) {
   const double ai = jn * wi, aj = -jn * wj;  // dv_i = ai n, dv_j = aj n
   if (tape_ != nullptr)
     tape_->pair(i, j, tau, ri.xr, ri.vc, ri.tr, rj.xr, rj.vc, rj.tr, ri.r + rj.r, wi, wj, e);
-  ri.xr = pi;
-  rj.xr = pj;
-  ri.tr = rj.tr = tau;
   ri.vc += ai * nrm;
   rj.vc += aj * nrm;
+  P.x = pi.x();
+  P.y = pi.y();
+  P.vx = ri.vc.x();
+  P.vy = ri.vc.y();
+  Q.x = pj.x();
+  Q.y = pj.y();
+  Q.vx = rj.vc.x();
+  Q.vy = rj.vc.y();
+  ref_t_[i] = ref_t_[j] = tau;
   out = {tau, ai, aj, nrm, pj + rj.r * nrm, vn, (ri.vc - rj.vc).dot(nrm), true};
   if (wi > 0.0) link_change(i, 2 * h);
   if (wj > 0.0) link_change(j, 2 * h + 1);
@@ -198,7 +200,7 @@ void PairContacts::resolve(const MutableState& s, double dt, double e, bool thre
   next_change_.resize(2 * hits);
   first_change_.assign(s.n, kNoLink);
   last_change_.assign(s.n, kNoLink);
-  // (ref_: the start states of the particles in hits, from find())
+  // (start_ and ref_t_: the reference states of the particles in hits, from find())
   if (!threads || hits < kParallelWave) {  // one thread: the order of the hits is a schedule
     for (std::size_t h = 0; h < hits; ++h) counts_.impulses += resolve_hit(h, dt, e);
     return;

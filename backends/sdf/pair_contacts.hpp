@@ -79,7 +79,7 @@ class PairContacts {
   };
   using Start = PairStart;
   /// Where a particle is along its straight path: at xr at time tr, velocity vc; its
-  /// radius and inverse mass.
+  /// radius and inverse mass (resolve_hit's copy of start_ and ref_t_).
   struct Ref {
     Vec2 xr, vc;
     double tr, r, w;
@@ -133,17 +133,18 @@ class PairContacts {
   /// Each hit's wave (for the waves on threads); the number of waves.
   uint32_t assign_waves(std::size_t n);
   bool resolve_islands(const MutableState& s, double dt, double e);
-  /// Time of impact after tau0 of i and j moving linearly from their reference states.
-  bool toi(uint32_t i, uint32_t j, double tau0, double dt, double& tau) const;
-  /// The same from the two reference states and the sum of the radii rr.
+  /// Time of impact after tau0 of two particles moving linearly from their reference states,
+  /// the sum of their radii rr.
   static inline bool toi_refs(const Ref& ri, const Ref& rj, double rr, double tau0, double dt,
                               double& tau);
   /// Resolves hit h from the reference states of its particles (updating them and linking
   /// their changes); whether it fired.
   bool resolve_hit(std::size_t h, double dt, double e);
 
-  std::vector<Start> start_;          ///< per particle: its start state
-  std::vector<Ref> ref_;              ///< per particle in a hit: its reference state (resolve())
+  /// per particle: its start state; in resolve(), for a particle in a hit, its reference
+  /// state (position and velocity moved on to its last contact, at time ref_t_)
+  std::vector<Start> start_;
+  std::vector<double> ref_t_;
   std::vector<Box> fat_;              ///< per particle: its box in the list (NaN: none)
   std::vector<uint32_t> list_start_;  ///< per particle (+1): first entry in list_
   std::vector<std::pair<uint32_t, uint32_t>> list_;   ///< listed pairs (i < j), by i
