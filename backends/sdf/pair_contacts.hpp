@@ -31,8 +31,8 @@ class PairContacts {
     std::size_t candidates = 0;      ///< pairs whose swept boxes overlap
     std::size_t hits = 0;            ///< of them, pairs that meet within the step at first sight
     std::size_t impulses = 0;        ///< impulses applied (events emitted)
-    std::size_t levels = 0;          ///< waves of hits sharing no particle (on threads only)
-    std::size_t largest_island = 0;  ///< hits of the largest island (on threads only)
+    std::size_t levels = 0;          ///< waves of hits sharing no particle (when waves ran)
+    std::size_t largest_island = 0;  ///< hits of the largest island (when islands were tried)
     std::size_t listed = 0;          ///< pairs in the list of nearby pairs
     bool rebuilt = false;            ///< whether this step built that list anew
     std::size_t moved = 0;           ///< else, particles given a new box in it
@@ -141,8 +141,9 @@ class PairContacts {
   /// their changes); whether it fired.
   bool resolve_hit(std::size_t h, double dt, double e);
 
-  /// per particle: its start state; in resolve(), for a particle in a hit, its reference
-  /// state (position and velocity moved on to its last contact, at time ref_t_)
+  /// per particle: its start state (sweep()); from resolve() on, for a particle in a hit, its
+  /// reference state instead (position and velocity moved on to its last contact, at time
+  /// ref_t_) until the next sweep()
   std::vector<Start> start_;
   std::vector<double> ref_t_;
   std::vector<Box> fat_;              ///< per particle: its box in the list (NaN: none)
@@ -189,7 +190,7 @@ class PairContacts {
   DriftRecorder* tape_ = nullptr;  ///< this schedule's drift recorder, if any
 };
 
-/// Particle i's changes: a forward range over its chain of links.
+/// Particle i's changes: an input range over its chain of links.
 class PairContacts::ChangeRange {
  public:
   class iterator {
@@ -197,7 +198,7 @@ class PairContacts::ChangeRange {
     using iterator_category = std::input_iterator_tag;
     using value_type = Change;
     using difference_type = std::ptrdiff_t;
-    using pointer = const Change*;
+    using pointer = void;
     using reference = Change;
     iterator(const PairContacts* pc, std::size_t k) : pc_(pc), k_(k) {}
     Change operator*() const {

@@ -4,7 +4,7 @@
 // c = dx.dx - (r_i + r_j)^2; README, Particle-particle contacts), the hits in order of
 // (tau, i, j), each re-timed from its particles' states as updated by the earlier ones and
 // given the impulse J = -(1 + e) vn / (w_i + w_j). The grid, the sort and the waves must give
-// the same changes and events to the bit, with 1 and 2 threads.
+// the same changes and events to the bit, on one thread and on 2 and 3.
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstring>
