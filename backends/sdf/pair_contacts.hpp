@@ -123,8 +123,9 @@ class PairContacts {
   void in_grid(const Box& b, F&& f) const;
   /// The hits among the listed pairs: swept boxes that overlap, meeting within the step.
   void scan_list(double dt, bool threads);
-  /// The hits among k pairs (ni[m], nj[m]) into out (pair_list.cpp).
-  void times_of_impact(const uint32_t* ni, const uint32_t* nj, std::size_t k, double dt,
+  /// The hits among k pairs (ni[m], nj[m]) into out, those touching at the start first
+  /// (pair_list.cpp; ni and nj are used as scratch).
+  void times_of_impact(uint32_t* ni, uint32_t* nj, std::size_t k, double dt,
                        std::vector<Hit>& out) const;
   void order_hits(bool threads, double dt);
   void sort_touching(std::size_t count);

@@ -379,13 +379,26 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
 
 // The time of impact of each pair (ni[m], nj[m]) left by look(), as toi_refs gives it at
 // tau0 = 0 (reference times 0): touching (and approaching) gives 0, else the first root
-// c / (-b + sqrt(b^2 - a c)) if real and within the step; computed for every pair left
-// without branches, kept where it applies.
-void PairContacts::times_of_impact(const uint32_t* ni, const uint32_t* nj, std::size_t k, double dt,
+// c / (-b + sqrt(b^2 - a c)) if real and within the step. First the touching pairs out as
+// hits (in their order) and the others gathered to the front of ni, nj; then the roots of
+// those, computed for each without branches and kept where they apply (most pairs of a pile
+// touch: they need no root).
+void PairContacts::times_of_impact(uint32_t* ni, uint32_t* nj, std::size_t k, double dt,
                                    std::vector<Hit>& out) const {
   out.resize(k);
-  std::size_t hits = 0;
+  std::size_t hits = 0, apart = 0;
   for (std::size_t m = 0; m < k; ++m) {
+    const uint32_t i = ni[m], j = nj[m];
+    const Start &P = start_[i], &Q = start_[j];
+    const double dx = P.x - Q.x, dy = P.y - Q.y, rr = P.r + Q.r;
+    const bool is_apart = (dx * dx + dy * dy) - rr * rr > 0.0;  // (all are approaching)
+    out[hits] = {0.0, i, j};
+    ni[apart] = i;
+    nj[apart] = j;
+    hits += static_cast<unsigned>(!is_apart);
+    apart += static_cast<unsigned>(is_apart);
+  }
+  for (std::size_t m = 0; m < apart; ++m) {
     const uint32_t i = ni[m], j = nj[m];
     const Start &P = start_[i], &Q = start_[j];
     const double dx = P.x - Q.x, dy = P.y - Q.y, dvx = P.vx - Q.vx, dvy = P.vy - Q.vy;
@@ -393,11 +406,9 @@ void PairContacts::times_of_impact(const uint32_t* ni, const uint32_t* nj, std::
     const double qa = dvx * dvx + dvy * dvy, qb = dx * dvx + dy * dvy;
     const double qc = (dx * dx + dy * dy) - rr * rr;
     const double disc = qb * qb - qa * qc;
-    const bool apart = qc > 0.0;  // (all are approaching)
     const double root = qc / (-qb + std::sqrt(std::max(disc, 0.0)));
-    out[hits] = {apart ? root : 0.0, i, j};
-    hits += static_cast<unsigned>(!apart) |
-            (static_cast<unsigned>(disc >= 0.0) & static_cast<unsigned>(root <= dt));
+    out[hits] = {root, i, j};
+    hits += static_cast<unsigned>(disc >= 0.0) & static_cast<unsigned>(root <= dt);
   }
   out.resize(hits);
 }
