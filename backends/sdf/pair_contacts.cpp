@@ -54,10 +54,13 @@ void PairContacts::find(const MutableState& s, double dt, bool threads, DriftRec
   // each particle in a hit: its reference state starts as its start state (at time 0)
   in_hit_.assign(s.n, 0);
   ref_t_.resize(s.n);
-  for (const Hit& h : hits_) {
+  auto mark = [&](const Hit& h) {
     in_hit_[h.i] = in_hit_[h.j] = 1;
     ref_t_[h.i] = ref_t_[h.j] = 0.0;
-  }
+  };
+  std::for_each(ordered_.begin(), ordered_.begin() + static_cast<std::ptrdiff_t>(touching_n_),
+                mark);
+  std::for_each(later_.begin(), later_.begin() + static_cast<std::ptrdiff_t>(later_n_), mark);
 }
 
 void PairContacts::resolve_found(const MutableState& s, double dt, double e, bool threads) {
@@ -67,24 +70,15 @@ void PairContacts::resolve_found(const MutableState& s, double dt, double e, boo
 }
 
 // The keys (tau, i, j) are unique, so any correct sort gives the same order. The hits that
-// touch at the start (tau = 0) come first, in order of (i, j) (sort_touching); then the others
-// (later_): a counting sort by a bucket of tau that never decreases with tau
-// (floor(tau B / dt), B = the number of them), then each bucket sorted by the full key.
+// touch at the start (tau = 0, the scan put them in ordered_) come first, in order of (i, j)
+// (sort_touching); then the others (later_): a counting sort by a bucket of tau that never
+// decreases with tau (floor(tau B / dt), B = the number of them), then each bucket sorted by
+// the full key. The result in hits_.
 void PairContacts::order_hits(bool threads, double dt) {
   auto before = [](const Hit& a, const Hit& b) {
     return a.tau < b.tau || (a.tau == b.tau && (a.i < b.i || (a.i == b.i && a.j < b.j)));
   };
-  const std::size_t hits = hits_.size();
-  ordered_.resize(hits);
-  later_.resize(hits);
-  std::size_t touching = 0, apart = 0;
-  for (const Hit& h : hits_) {  // (tau >= 0: times_of_impact)
-    const bool is_later = h.tau > 0.0;
-    ordered_[touching] = h;
-    later_[apart] = h;
-    touching += static_cast<std::size_t>(!is_later);
-    apart += static_cast<std::size_t>(is_later);
-  }
+  const std::size_t touching = touching_n_, apart = later_n_;
   sort_touching(touching);
   Hit* const out = ordered_.data() + touching;
   if (apart < kBucketSort) {
@@ -137,7 +131,8 @@ void PairContacts::order_hits(bool threads, double dt) {
 
 // The first `count` hits of ordered_ (tau = 0: the hits that touch at the start) in order of
 // (i, j). The scan finds them in that order from the list (its runs are in increasing order)
-// and appends those of the moved particles' pairs: those are sorted and merged in.
+// and appends those of the moved particles' pairs: from the first hit out of order on (those,
+// or a pair apart whose root rounded to 0) they are sorted and merged in.
 void PairContacts::sort_touching(std::size_t count) {
   Hit* b = ordered_.data();
   Hit* e = b + count;

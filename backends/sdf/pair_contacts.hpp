@@ -125,8 +125,8 @@ class PairContacts {
   void scan_list(double dt, bool threads);
   /// The hits among k pairs (ni[m], nj[m]) into out, those touching at the start first
   /// (pair_list.cpp; ni and nj are used as scratch).
-  void times_of_impact(uint32_t* ni, uint32_t* nj, std::size_t k, double dt,
-                       std::vector<Hit>& out) const;
+  std::size_t times_of_impact(uint32_t* ni, uint32_t* nj, std::size_t k, double dt,
+                              std::vector<Hit>& out) const;
   void order_hits(bool threads, double dt);
   void sort_touching(std::size_t count);
   void resolve(const MutableState& s, double dt, double e, bool threads);
@@ -168,24 +168,26 @@ class PairContacts {
   std::vector<std::vector<uint32_t>> chunk_near_;  ///< per scan chunk: overlapping entries
   std::vector<std::vector<Hit>> chunk_hits_;
   std::vector<std::size_t> chunk_candidates_;
-  std::vector<Hit> hits_;                  ///< in order of (tau, i, j)
-  std::vector<char> in_hit_;               ///< per particle: in a hit of this step
-  std::vector<Hit> ordered_;               ///< order_hits()'s result
-  std::vector<Hit> later_;                 ///< order_hits()'s hits apart at the start
-  std::vector<uint32_t> bucket_start_;     ///< per bucket of order_hits(): first hit
-  std::vector<Hit> touching_;              ///< sort_touching()'s merged hits
-  std::vector<Outcome> outcome_;           ///< per hit
-  std::vector<uint32_t> level_of_;         ///< per hit: its wave
-  std::vector<uint32_t> last_level_;       ///< per particle: wave of its last hit so far
-  std::vector<uint32_t> level_start_;      ///< per wave: first entry in by_level_
-  std::vector<uint32_t> by_level_;         ///< hits by wave or island, in order within each
-  std::vector<uint32_t> parent_;           ///< per particle: union-find parent
-  std::vector<uint32_t> root_of_;          ///< per hit: its island's root particle
-  std::vector<uint32_t> task_start_;       ///< per island task: first entry in by_level_
-  std::vector<std::size_t> first_change_;  ///< per particle: first link of its changes
-  std::vector<std::size_t> last_change_;   ///< per particle: last link so far (resolve())
-  std::vector<std::size_t> next_change_;   ///< per link: the next of its particle
-  std::vector<uint32_t> fill_;             ///< counting sorts' next free entries
+  std::vector<Hit> hits_;     ///< in order of (tau, i, j)
+  std::vector<char> in_hit_;  ///< per particle: in a hit of this step
+  std::vector<Hit> ordered_;  ///< the scan's touching hits (touching_n_), then order_hits()'s
+  std::vector<Hit> later_;    ///< the scan's other hits (later_n_)
+  std::size_t touching_n_ = 0, later_n_ = 0;
+  std::vector<std::size_t> chunk_touching_;  ///< per scan chunk: its touching hits (first)
+  std::vector<uint32_t> bucket_start_;       ///< per bucket of order_hits(): first hit
+  std::vector<Hit> touching_;                ///< sort_touching()'s merged hits
+  std::vector<Outcome> outcome_;             ///< per hit
+  std::vector<uint32_t> level_of_;           ///< per hit: its wave
+  std::vector<uint32_t> last_level_;         ///< per particle: wave of its last hit so far
+  std::vector<uint32_t> level_start_;        ///< per wave: first entry in by_level_
+  std::vector<uint32_t> by_level_;           ///< hits by wave or island, in order within each
+  std::vector<uint32_t> parent_;             ///< per particle: union-find parent
+  std::vector<uint32_t> root_of_;            ///< per hit: its island's root particle
+  std::vector<uint32_t> task_start_;         ///< per island task: first entry in by_level_
+  std::vector<std::size_t> first_change_;    ///< per particle: first link of its changes
+  std::vector<std::size_t> last_change_;     ///< per particle: last link so far (resolve())
+  std::vector<std::size_t> next_change_;     ///< per link: the next of its particle
+  std::vector<uint32_t> fill_;               ///< counting sorts' next free entries
   Counts counts_;
   double sim_t_ = 0.0;
   DriftRecorder* tape_ = nullptr;  ///< this schedule's drift recorder, if any

@@ -383,8 +383,8 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
 // hits (in their order) and the others gathered to the front of ni, nj; then the roots of
 // those, computed for each without branches and kept where they apply (most pairs of a pile
 // touch: they need no root).
-void PairContacts::times_of_impact(uint32_t* ni, uint32_t* nj, std::size_t k, double dt,
-                                   std::vector<Hit>& out) const {
+std::size_t PairContacts::times_of_impact(uint32_t* ni, uint32_t* nj, std::size_t k, double dt,
+                                          std::vector<Hit>& out) const {
   out.resize(k);
   std::size_t hits = 0, apart = 0;
   for (std::size_t m = 0; m < k; ++m) {
@@ -398,6 +398,7 @@ void PairContacts::times_of_impact(uint32_t* ni, uint32_t* nj, std::size_t k, do
     hits += static_cast<unsigned>(!is_apart);
     apart += static_cast<unsigned>(is_apart);
   }
+  const std::size_t touching = hits;
   for (std::size_t m = 0; m < apart; ++m) {
     const uint32_t i = ni[m], j = nj[m];
     const Start &P = start_[i], &Q = start_[j];
@@ -411,6 +412,7 @@ void PairContacts::times_of_impact(uint32_t* ni, uint32_t* nj, std::size_t k, do
     hits += static_cast<unsigned>(disc >= 0.0) & static_cast<unsigned>(root <= dt);
   }
   out.resize(hits);
+  return touching;
 }
 
 void PairContacts::scan_list(double dt, bool threads) {
@@ -418,6 +420,7 @@ void PairContacts::scan_list(double dt, bool threads) {
   const std::size_t chunks = chunk_count(entries, kScanEntries);
   chunk_hits_.resize(chunks + 1);
   chunk_candidates_.assign(chunks + 1, 0);
+  chunk_touching_.assign(chunks + 1, 0);
   chunk_near_.resize(std::max(chunk_near_.size(), chunks + 1));
   // pairs [p, p + count) as chunk c
   auto scan = [&](std::size_t c, const std::pair<uint32_t, uint32_t>* pairs, std::size_t count) {
@@ -438,21 +441,38 @@ void PairContacts::scan_list(double dt, bool threads) {
       k += left;
     }
     chunk_candidates_[c] = candidates;
-    times_of_impact(ni, nj, k, dt, chunk_hits_[c]);
+    chunk_touching_[c] = times_of_impact(ni, nj, k, dt, chunk_hits_[c]);
   };
   chunked(threads, entries, kScanEntries, [&](std::size_t c, std::size_t b, std::size_t end) {
     scan(c, list_.data() + b, end - b);
   });
   scan(chunks, extra_.data(), extra_.size());  // the moved particles' pairs, as one more chunk
+  // The hits out of the chunks in chunk order: those touching at the start into ordered_,
+  // the others into later_ (a root that rounds to 0 counts as touching: tau = 0).
   std::size_t total = 0;
   for (std::size_t c = 0; c < chunk_hits_.size(); ++c) {
     total += chunk_hits_[c].size();
     counts_.candidates += chunk_candidates_[c];
   }
-  hits_.clear();
-  hits_.reserve(total);
-  for (const auto& h : chunk_hits_) hits_.insert(hits_.end(), h.begin(), h.end());
-  counts_.hits = hits_.size();
+  ordered_.resize(total);
+  later_.resize(total);
+  std::size_t touching = 0, apart = 0;
+  for (std::size_t c = 0; c < chunk_hits_.size(); ++c) {
+    const std::vector<Hit>& h = chunk_hits_[c];
+    std::copy(h.begin(), h.begin() + static_cast<std::ptrdiff_t>(chunk_touching_[c]),
+              ordered_.begin() + static_cast<std::ptrdiff_t>(touching));
+    touching += chunk_touching_[c];
+    for (std::size_t m = chunk_touching_[c]; m < h.size(); ++m) {
+      const bool is_later = h[m].tau > 0.0;
+      ordered_[touching] = h[m];
+      later_[apart] = h[m];
+      touching += static_cast<std::size_t>(!is_later);
+      apart += static_cast<std::size_t>(is_later);
+    }
+  }
+  touching_n_ = touching;
+  later_n_ = apart;
+  counts_.hits = total;
 }
 
 }  // namespace pinsim::sdf
