@@ -50,17 +50,7 @@ void PairContacts::find(const MutableState& s, double dt, bool threads, DriftRec
   sim_t_ = s.t;
   tape_ = tape;
   if (tape_ != nullptr) threads = false;  // the tape takes the hits in their order
-  find_hits(s, dt, threads);
-  // each particle in a hit: its reference state starts as its start state (at time 0)
-  in_hit_.assign(s.n, 0);
-  ref_t_.resize(s.n);
-  auto mark = [&](const Hit& h) {
-    in_hit_[h.i] = in_hit_[h.j] = 1;
-    ref_t_[h.i] = ref_t_[h.j] = 0.0;
-  };
-  std::for_each(ordered_.begin(), ordered_.begin() + static_cast<std::ptrdiff_t>(touching_n_),
-                mark);
-  std::for_each(later_.begin(), later_.begin() + static_cast<std::ptrdiff_t>(later_n_), mark);
+  find_hits(s, dt, threads);              // (scan_list marks the particles in hits: in_hit_)
 }
 
 void PairContacts::resolve_found(const MutableState& s, double dt, double e, bool threads) {

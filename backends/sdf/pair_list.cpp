@@ -448,7 +448,15 @@ void PairContacts::scan_list(double dt, bool threads) {
   });
   scan(chunks, extra_.data(), extra_.size());  // the moved particles' pairs, as one more chunk
   // The hits out of the chunks in chunk order: those touching at the start into ordered_,
-  // the others into later_ (a root that rounds to 0 counts as touching: tau = 0).
+  // the others into later_ (a root that rounds to 0 counts as touching: tau = 0); on the way
+  // each particle in a hit marked, its reference state to start at time 0 (resolve()).
+  const std::size_t n = start_.size();
+  in_hit_.assign(n, 0);
+  ref_t_.resize(n);
+  auto mark = [&](const Hit& h) {
+    in_hit_[h.i] = in_hit_[h.j] = 1;
+    ref_t_[h.i] = ref_t_[h.j] = 0.0;
+  };
   std::size_t total = 0;
   for (std::size_t c = 0; c < chunk_hits_.size(); ++c) {
     total += chunk_hits_[c].size();
@@ -459,10 +467,12 @@ void PairContacts::scan_list(double dt, bool threads) {
   std::size_t touching = 0, apart = 0;
   for (std::size_t c = 0; c < chunk_hits_.size(); ++c) {
     const std::vector<Hit>& h = chunk_hits_[c];
-    std::copy(h.begin(), h.begin() + static_cast<std::ptrdiff_t>(chunk_touching_[c]),
-              ordered_.begin() + static_cast<std::ptrdiff_t>(touching));
-    touching += chunk_touching_[c];
+    for (std::size_t m = 0; m < chunk_touching_[c]; ++m) {
+      ordered_[touching++] = h[m];
+      mark(h[m]);
+    }
     for (std::size_t m = chunk_touching_[c]; m < h.size(); ++m) {
+      mark(h[m]);
       const bool is_later = h[m].tau > 0.0;
       ordered_[touching] = h[m];
       later_[apart] = h[m];
