@@ -16,6 +16,8 @@ constexpr std::size_t kParallelWave = 256;
 /// buckets' sorts on threads.
 constexpr std::size_t kBucketSort = 64;
 constexpr std::size_t kSortHits = 2048;
+/// Hits between two publications of the resolution's progress (resolved_below()).
+constexpr std::size_t kPublish = 64;
 /// Hits per task of the islands' resolution (a task ends at the first island boundary past it).
 constexpr uint32_t kIslandTask = 256;
 }  // namespace
@@ -28,7 +30,8 @@ constexpr uint32_t kIslandTask = 256;
 //    lies inside its enlarged box (then any two that overlap are listed).
 // 2. order_hits: the hits in order of (tau, i, j) (unique keys: any sort gives this order).
 // 3. resolve: in that order, each hit recomputes its time of impact from the current
-//    reference states of its two particles and applies the impulse. A hit reads and writes
+//    reference states of its two particles and applies the impulse (one thread publishes
+//    how far it is: resolved_below()). A hit reads and writes
 //    only its two particles' states, so the result is the same for any order of the hits
 //    that keeps each particle's hits in their order: one thread takes them in order; on
 //    threads, the islands of the contact graph side by side (resolve_islands), or else waves
@@ -47,6 +50,7 @@ void PairContacts::schedule(const MutableState& s, double dt, double e, bool thr
 
 void PairContacts::find(const MutableState& s, double dt, bool threads, DriftRecorder* tape) {
   counts_ = Counts{};
+  resolved_below_.store(0, std::memory_order_relaxed);
   sim_t_ = s.t;
   tape_ = tape;
   if (tape_ != nullptr) threads = false;  // the tape takes the hits in their order
@@ -187,12 +191,22 @@ void PairContacts::resolve(const MutableState& s, double dt, double e, bool thre
   first_change_.assign(s.n, kNoLink);
   last_change_.assign(s.n, kNoLink);
   // (start_ and ref_t_: the reference states of the particles in hits, from find())
-  if (!threads || hits < kParallelWave) {  // one thread: the order of the hits is a schedule
-    for (std::size_t h = 0; h < hits; ++h) counts_.impulses += resolve_hit(h, dt, e);
-    return;
+  if (!threads || hits < kParallelWave) {
+    // one thread: the order of the hits is a schedule. Before hit h, all hits before it are
+    // resolved: while they touch at the start they are in order of (i, j), so every hit of a
+    // particle below hits_[h].i that touches at the start is among them (published every
+    // kPublish hits); past them, every such hit of every particle is.
+    const std::size_t touching = touching_n_;
+    for (std::size_t h = 0; h < hits; ++h) {
+      if (h % kPublish == 0)
+        resolved_below_.store(h < touching ? hits_[h].i : s.n, std::memory_order_release);
+      counts_.impulses += resolve_hit(h, dt, e);
+    }
+  } else {
+    if (!resolve_islands(s, dt, e)) resolve_waves(s.n, dt, e);
+    for (const Outcome& o : outcome_) counts_.impulses += o.fired;
   }
-  if (!resolve_islands(s, dt, e)) resolve_waves(s.n, dt, e);
-  for (const Outcome& o : outcome_) counts_.impulses += o.fired;
+  resolved_below_.store(kAllResolved, std::memory_order_release);
 }
 
 // The hits in waves (assign_waves): those of a wave share no particle and run at once, on

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -54,6 +55,14 @@ class PairContacts {
   void emit_events(EventSink& ev) const;
   /// Whether particle i is in one of the hits find() found.
   bool in_hit(std::size_t i) const { return in_hit_[i] != 0; }
+  /// Whether particle i is in a hit that does not touch at the start (tau > 0).
+  bool late(std::size_t i) const { return (in_hit_[i] & kLate) != 0; }
+  /// While resolve_found() runs on another thread: every particle below the value returned
+  /// whose hits all touch at the start (not late()) has its changes(i) final; every particle
+  /// has at kAllResolved. Reset by find(); read with acquire, so what the resolution wrote
+  /// for those particles is visible to the reader.
+  std::size_t resolved_below() const { return resolved_below_.load(std::memory_order_acquire); }
+  static constexpr std::size_t kAllResolved = ~std::size_t{0};
   /// No pair contacts in this step for particles 0..n-1 (changes(i) empty).
   void clear(std::size_t n) { first_change_.assign(n, kNoLink); }
   class ChangeRange;
@@ -94,6 +103,8 @@ class PairContacts {
   };
 
   static constexpr std::size_t kNoList = ~std::size_t{0};
+  /// in_hit_ flags: in a hit that touches at the start, in one that does not.
+  static constexpr char kTouching = 1, kLate = 2;
   /// A particle's velocity changes are a chain through the outcomes of its hits that fired:
   /// link 2 h is hit h's change of its particle i, 2 h + 1 that of j (kNoLink: none).
   static constexpr std::size_t kNoLink = ~std::size_t{0};
@@ -169,7 +180,8 @@ class PairContacts {
   std::vector<std::vector<Hit>> chunk_hits_;
   std::vector<std::size_t> chunk_candidates_;
   std::vector<Hit> hits_;     ///< in order of (tau, i, j)
-  std::vector<char> in_hit_;  ///< per particle: in a hit of this step
+  std::vector<char> in_hit_;  ///< per particle: kTouching | kLate, the hits it is in
+  std::atomic<std::size_t> resolved_below_{0};  ///< see resolved_below()
   std::vector<Hit> ordered_;  ///< the scan's touching hits (touching_n_), then order_hits()'s
   std::vector<Hit> later_;    ///< the scan's other hits (later_n_)
   std::size_t touching_n_ = 0, later_n_ = 0;

@@ -449,12 +449,14 @@ void PairContacts::scan_list(double dt, bool threads) {
   scan(chunks, extra_.data(), extra_.size());  // the moved particles' pairs, as one more chunk
   // The hits out of the chunks in chunk order: those touching at the start into ordered_,
   // the others into later_ (a root that rounds to 0 counts as touching: tau = 0); on the way
-  // each particle in a hit marked, its reference state to start at time 0 (resolve()).
+  // each particle in a hit marked (kTouching, kLate: the kinds of its hits), its reference
+  // state to start at time 0 (resolve()).
   const std::size_t n = start_.size();
   in_hit_.assign(n, 0);
   ref_t_.resize(n);
-  auto mark = [&](const Hit& h) {
-    in_hit_[h.i] = in_hit_[h.j] = 1;
+  auto mark = [&](const Hit& h, char flag) {
+    in_hit_[h.i] |= flag;
+    in_hit_[h.j] |= flag;
     ref_t_[h.i] = ref_t_[h.j] = 0.0;
   };
   std::size_t total = 0;
@@ -469,11 +471,11 @@ void PairContacts::scan_list(double dt, bool threads) {
     const std::vector<Hit>& h = chunk_hits_[c];
     for (std::size_t m = 0; m < chunk_touching_[c]; ++m) {
       ordered_[touching++] = h[m];
-      mark(h[m]);
+      mark(h[m], kTouching);
     }
     for (std::size_t m = chunk_touching_[c]; m < h.size(); ++m) {
-      mark(h[m]);
       const bool is_later = h[m].tau > 0.0;
+      mark(h[m], is_later ? kLate : kTouching);
       ordered_[touching] = h[m];
       later_[apart] = h[m];
       touching += static_cast<std::size_t>(!is_later);

@@ -1,6 +1,8 @@
 #include "sdf_backend.hpp"
 
 #include <algorithm>
+#include <atomic>
+#include <chrono>
 #include <cmath>
 #include <pinsim/parallel.hpp>
 #include <pinsim/scene_field/limits.hpp>
@@ -355,6 +357,29 @@ namespace {
 void push_event(void* ctx, const pinsim_event* e) {
   static_cast<std::vector<pinsim_event>*>(ctx)->push_back(*e);
 }
+
+/// Waits (spinning) until ready() holds, true, or until `stop` is set or kSpinLimit has
+/// passed, false: for waits on a thread that is running, never on work that may be queued
+/// behind the waiting thread.
+template <class Ready>
+bool spin_until(Ready&& ready, const std::atomic<bool>& stop) {
+  constexpr std::chrono::microseconds kSpinLimit{50};
+  std::chrono::steady_clock::time_point until{};
+  for (unsigned turn = 0;; ++turn) {
+    if (stop.load(std::memory_order_acquire)) return false;
+    if (ready()) return true;
+    if (turn % 64 == 0) {
+      const auto now = std::chrono::steady_clock::now();
+      if (turn == 0)
+        until = now + kSpinLimit;
+      else if (now > until)
+        return false;
+    }
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+  }
+}
 }  // namespace
 
 // Fixed chunks of kChunk particles, on threads: each chunk's events collected apart in
@@ -452,47 +477,96 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
 }
 
 // A particle in no hit of the step gets no velocity change from the pair contacts, so its
-// march (march_or_reuse, as in the serial loop) does not wait for them: those are marched in
-// fixed chunks while the hits are ordered and resolved (their events kept apart), then the
-// particles in hits, in the same chunks, while the pair events are made (from the resolved
-// hits, read only). The pair events are emitted first, then each chunk's
-// two event lists merged by particle (each is in particle order, and a particle is in one):
-// the order of the serial loop, for any thread count.
+// march (march_or_reuse, as in the serial loop) does not wait for them: one thread orders,
+// resolves and emits the hits while the others march those particles in fixed chunks. A
+// particle in hits may be marched once its last hit is resolved: while the resolution
+// runs, the marching thread goes on with the particles in hits of the chunks it is past
+// (resolved_below()), keeping those in a hit that does not touch at the start apart; it
+// stops when the resolution ends or makes it wait too long. Then every chunk's particles
+// left, on threads. A particle's march reads only its own changes, so it gives the same
+// bits whenever and wherever it runs after its last hit. Each chunk's events are kept in
+// lists by particle; the pair events are emitted first, then the chunks' lists merged by
+// particle (a particle is in one): the order of the serial loop, for any thread count.
 void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, EventSink& ev) {
   pairs_.find(s, dt, true);
   rest_.resize(s.n);
   const std::size_t chunks = chunk_count(s.n, kChunk);
   chunk_stats_.assign(chunks, SdfStats{});
+  late_stats_.assign(chunks, SdfStats{});
+  late_events_.resize(chunks);
+  kept_apart_.resize(chunks);
+  late_mark_.assign(chunks, 0);
+  marched_early_.assign(chunks, 0);
+  pair_events_.clear();
+  auto march_into = [&](std::size_t c, std::size_t i, SdfStats& st) {
+    const pinsim_event_sink to{&late_events_[c], &push_event};
+    EventSink sink(&to);
+    march_with_changes(i, s, t0, dt, st, sink);
+  };
+  // chunk c's particles in hits, those in a hit that does not touch at the start kept apart
+  // unless every hit is resolved (`all`)
+  auto march_hits = [&](std::size_t c, bool all) {
+    late_events_[c].clear();
+    kept_apart_[c].clear();
+    SdfStats st;
+    for (std::size_t i = c * kChunk, e = std::min(s.n, i + kChunk); i < e; ++i) {
+      if (!(s.inv_mass[i] > 0.0) || !pairs_.in_hit(i)) continue;
+      if (!all && pairs_.late(i))
+        kept_apart_[c].push_back(static_cast<uint32_t>(i));
+      else
+        march_into(c, i, st);
+    }
+    late_stats_[c] = st;
+    late_mark_[c] = late_events_[c].size();
+  };
   auto free_one = [&](std::size_t i, SdfStats& st, EventSink& sink) {
     if (s.inv_mass[i] > 0.0 && !pairs_.in_hit(i)) march_or_reuse(i, s, t0, dt, st, sink);
   };
-  auto hit_one = [&](std::size_t i, SdfStats& st, EventSink& sink) {
-    if (s.inv_mass[i] > 0.0 && pairs_.in_hit(i)) march_with_changes(i, s, t0, dt, st, sink);
-  };
-  // (the hits on one thread beside the marches: with two threads the other is marching; from
-  // three, their waves may use the rest)
-  run_both([&] { pairs_.resolve_found(s, dt, particle_e_, available_threads() > 2); },
-           [&] { march_chunked(s.n, free_one, chunk_events_); });
-  stats_.pair_contacts += pairs_.counts().impulses;
-  pair_events_.clear();
+  std::atomic<bool> resolved{false};
   run_both(
       [&] {
+        // (from three threads its waves may use the others; isolated, so that this thread
+        // never runs the other side's work beneath them)
+        if (available_threads() > 2)
+          isolated([&] { pairs_.resolve_found(s, dt, particle_e_, true); });
+        else
+          pairs_.resolve_found(s, dt, particle_e_, false);
         const pinsim_event_sink to{&pair_events_, &push_event};
         EventSink sink(&to);
         pairs_.emit_events(sink);
+        resolved.store(true, std::memory_order_release);
       },
-      [&] { march_chunked(s.n, hit_one, late_events_); });
+      [&] {
+        march_chunked(s.n, free_one, chunk_events_);
+        for (std::size_t c = 0; c < chunks; ++c) {
+          const std::size_t e = std::min(s.n, (c + 1) * kChunk);
+          if (!spin_until([&] { return pairs_.resolved_below() >= e; }, resolved)) return;
+          march_hits(c, false);
+          marched_early_[c] = 1;
+        }
+      });
+  for_chunks(chunks, 1, [&](std::size_t c, std::size_t, std::size_t) {
+    if (marched_early_[c] == 0) {
+      march_hits(c, true);
+      return;
+    }
+    if (kept_apart_[c].empty()) return;
+    for (const uint32_t i : kept_apart_[c]) march_into(c, i, late_stats_[c]);
+    auto& late = late_events_[c];
+    std::inplace_merge(
+        late.begin(), late.begin() + static_cast<std::ptrdiff_t>(late_mark_[c]), late.end(),
+        [](const pinsim_event& a, const pinsim_event& b) { return a.particle < b.particle; });
+  });
+  stats_.pair_contacts += pairs_.counts().impulses;
   for (const pinsim_event& e : pair_events_) ev.emit(e);
-  const auto by_particle = [](const pinsim_event& a, const pinsim_event& b) {
-    return a.particle < b.particle;
-  };
   for (std::size_t c = 0; c < chunks; ++c) {
     add(stats_, chunk_stats_[c]);
+    add(stats_, late_stats_[c]);
     const auto& early = chunk_events_[c];
     const auto& late = late_events_[c];
-    auto a = early.begin(), b = late.begin();
-    while (a != early.end() || b != late.end())
-      ev.emit(b == late.end() || (a != early.end() && by_particle(*a, *b)) ? *a++ : *b++);
+    auto a = early.cbegin(), b = late.cbegin();
+    while (a != early.cend() || b != late.cend())
+      ev.emit(b == late.cend() || (a != early.cend() && a->particle < b->particle) ? *a++ : *b++);
   }
 }
 

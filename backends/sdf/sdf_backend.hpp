@@ -79,7 +79,7 @@ class SdfBackend : public FieldBackend {
   /// `threads`.
   void schedule_pairs(const MutableState& s, double dt, bool threads, EventSink& ev);
   /// The step on threads with pair contacts: the particles in no hit marched while the hits
-  /// are resolved, then the others.
+  /// are resolved, the others as soon as their hits are.
   void march_beside_pairs(MutableState& s, double t0, double dt, EventSink& ev);
   /// particle(i, stats, sink) for particles 0..n-1 in fixed chunks on threads (events[c],
   /// chunk_stats_[c]: per chunk).
@@ -115,7 +115,11 @@ class SdfBackend : public FieldBackend {
   std::vector<SdfStats> chunk_stats_;                    ///< per chunk, this step
   std::vector<std::vector<pinsim_event>> chunk_events_;  ///< per chunk, this step
   std::vector<std::vector<pinsim_event>> late_events_;   ///< per chunk: particles in hits
-  std::vector<pinsim_event> pair_events_;                ///< this step's pair contacts
+  std::vector<SdfStats> late_stats_;                     ///< per chunk: their counters
+  std::vector<std::size_t> late_mark_;  ///< per chunk: late_events_ before those kept apart
+  std::vector<std::vector<uint32_t>> kept_apart_;  ///< per chunk: particles in later hits
+  std::vector<char> marched_early_;  ///< per chunk: its particles in hits marched beside the hits
+  std::vector<pinsim_event> pair_events_;  ///< this step's pair contacts
 };
 
 }  // namespace pinsim::sdf

@@ -113,4 +113,16 @@ void run_both(First&& first, Second&& second) {
   second();
 }
 
+/// Runs f() so that a thread waiting in it for the chunks of its loops takes no task from
+/// outside it (oneTBB's isolate): for work that another task spins on while it runs, which
+/// must not end up waiting beneath that very task on its own thread.
+template <class F>
+void isolated(F&& f) {
+#ifdef PINSIM_WITH_TBB
+  tbb::this_task_arena::isolate(f);
+#else
+  f();
+#endif
+}
+
 }  // namespace pinsim

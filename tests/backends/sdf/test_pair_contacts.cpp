@@ -11,6 +11,7 @@
 #include <optional>
 #include <pinsim/plugin.hpp>
 #include <random>
+#include <thread>
 #include <vector>
 #ifdef PINSIM_WITH_TBB
 #include <tbb/global_control.h>
@@ -213,6 +214,64 @@ TEST_CASE("pair contacts: grid, sort and waves equal the serial all-pairs loop t
     }
 #endif
   }
+}
+
+TEST_CASE("pair contacts: a particle's changes are final once the resolution is past it") {
+  // The backend marches a particle in hits as soon as resolved_below() passes it (and, if it
+  // is late(), once every hit is resolved), while the hits are resolved on another thread.
+  // Here a second thread resolves crowded steps (most hits touch at the start) while this
+  // one copies each particle's changes as soon as that says they are final: every copy must
+  // equal the changes at the end, to the bit.
+  std::size_t early = 0, copied = 0, late = 0;
+  for (unsigned seed : {31u, 32u, 33u, 34u, 35u, 36u}) {
+    Balls b = crowd(3000, 0.3, seed);
+    const MutableState ms = b.state(0.0);
+    const double dt = 2e-4;  // 0.2 mm of travel at most: few hits but those touching
+    PairContacts pc;
+    pc.find(ms, dt, false);
+    CHECK(pc.resolved_below() == 0);  // nothing is final before the resolution
+    std::vector<std::vector<PairContacts::Change>> at_final(b.n());
+    std::vector<char> done(b.n(), 0);
+    std::size_t next = 0;  // particles below it copied
+    auto copy = [&](std::size_t i) {
+      const auto c = pc.changes(i);
+      at_final[i].assign(c.begin(), c.end());
+      done[i] = 1;
+      ++copied;
+    };
+    std::thread resolver([&] { pc.resolve_found(ms, dt, 0.5, false); });
+    for (;;) {
+      const std::size_t below = pc.resolved_below();
+      const bool all = below == PairContacts::kAllResolved;
+      for (; next < std::min(below, b.n()); ++next)
+        if (pc.in_hit(next) && !pc.late(next)) {
+          copy(next);
+          early += !all;
+        }
+      if (all) break;
+    }
+    resolver.join();
+    for (std::size_t i = 0; i < b.n(); ++i) {
+      if (!pc.in_hit(i) || done[i] != 0) continue;
+      late += pc.late(i);
+      copy(i);
+    }
+    for (std::size_t i = 0; i < b.n(); ++i) {
+      const auto c = pc.changes(i);
+      const std::vector<PairContacts::Change> now(c.begin(), c.end());
+      REQUIRE(now.size() == at_final[i].size());
+      for (std::size_t k = 0; k < now.size(); ++k) {
+        CHECK(same_bits(now[k].tau, at_final[i][k].tau));
+        CHECK(same_bits(now[k].dv.x(), at_final[i][k].dv.x()));
+        CHECK(same_bits(now[k].dv.y(), at_final[i][k].dv.y()));
+      }
+    }
+  }
+  // both kinds of hits: particles final early and particles that wait for every hit (how
+  // many were copied early depends on the threads' timing: reported, not required)
+  INFO("copied " << copied << ", of them before the end " << early << ", late " << late);
+  CHECK(copied > 6000);
+  CHECK(late > 0);
 }
 
 TEST_CASE("pair contacts: separate crowds run as islands, with the same bits") {

@@ -4,6 +4,7 @@
 // falling on a floor and a bumper must give the same positions, velocities, events and
 // counters to the bit with 1 (the serial loop), 2 and 3 threads.
 #include <catch2/catch.hpp>
+#include <cmath>
 #include <cstring>
 #include <vector>
 #ifdef PINSIM_WITH_TBB
@@ -26,15 +27,31 @@ struct Run {
   std::size_t pair_events = 0, obstacle_events = 0;
 };
 
-/// 1500 balls of 1 cm, 2.1 cm apart, moving down and sideways at different speeds (every
-/// 29th pinned), 80 steps of 1 ms under gravity onto a floor and a round bumper.
-Run crowd_run(int threads) {
+/// `steps` steps of 1 ms of the balls under gravity above a floor and a round bumper, on
+/// `threads` threads.
+Run run(int threads, const std::vector<Ball>& balls, int steps) {
 #ifdef PINSIM_WITH_TBB
   const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                                   static_cast<std::size_t>(threads));
 #else
   (void)threads;
 #endif
+  const json scene = {
+      {"obstacles",
+       {obstacle("floor", {{"type", "box"}, {"center", {0.0, -0.5}}, {"half_size", {2.0, 0.5}}},
+                 0.5, 0.1),
+        obstacle("bumper", {{"type", "circle"}, {"center", {0.0, 0.1}}, {"radius", 0.1}}, 0.9)}},
+      {"contacts", {{"particles", true}, {"restitution", 0.5}}}};
+  Sim sim(scene, balls);
+  for (int s = 0; s < steps; ++s) sim.step(1e-3, Vec2(0.0, -9.81));
+  Run r{sim.x, sim.v, sim.events, sim.backend->stats()};
+  for (const pinsim_event& e : sim.events) ++(e.obstacle < 0 ? r.pair_events : r.obstacle_events);
+  return r;
+}
+
+/// 1500 balls of 1 cm, 2.1 cm apart, moving down and sideways at different speeds (every
+/// 29th pinned), to fall onto the floor and the bumper.
+std::vector<Ball> crowd() {
   std::vector<Ball> balls;
   for (int k = 0; k < 1500; ++k) {
     Ball b;
@@ -44,37 +61,55 @@ Run crowd_run(int threads) {
     b.inv_mass = k % 29 == 0 ? 0.0 : 1.0 / (0.01 + 0.001 * (k % 5));
     balls.push_back(b);
   }
-  const json scene = {
-      {"obstacles",
-       {obstacle("floor", {{"type", "box"}, {"center", {0.0, -0.5}}, {"half_size", {2.0, 0.5}}},
-                 0.5, 0.1),
-        obstacle("bumper", {{"type", "circle"}, {"center", {0.0, 0.1}}, {"radius", 0.1}}, 0.9)}},
-      {"contacts", {{"particles", true}, {"restitution", 0.5}}}};
-  Sim sim(scene, balls);
-  for (int s = 0; s < 80; ++s) sim.step(1e-3, Vec2(0.0, -9.81));
-  Run r{sim.x, sim.v, sim.events, sim.backend->stats()};
-  for (const pinsim_event& e : sim.events) ++(e.obstacle < 0 ? r.pair_events : r.obstacle_events);
-  return r;
+  return balls;
+}
+
+/// A pile at rest: 2400 balls of 5 mm in touching rows of 60 (hexagonal, each row on the
+/// one below), the lowest on the floor beside the bumper, masses varied (every 31st
+/// pinned). Under gravity nearly every contact is a hit that touches at the start.
+std::vector<Ball> pile() {
+  std::vector<Ball> balls;
+  const double r = 0.005, rise = r * std::sqrt(3.0);
+  for (int k = 0; k < 2400; ++k) {
+    const int row = k / 60, col = k % 60;
+    Ball b;
+    b.x = Vec2(-0.9 + 2.0 * r * col + (row % 2) * r, r + rise * row);
+    b.v = Vec2(0.0, 0.0);
+    b.r = r;
+    b.inv_mass = k % 31 == 0 ? 0.0 : 1.0 / (0.01 + 0.001 * (k % 7));
+    balls.push_back(b);
+  }
+  return balls;
 }
 
 bool same_bits(const std::vector<double>& a, const std::vector<double>& b) {
   return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
 }
 
+void require_same(const Run& one, const Run& many) {
+  CHECK(same_bits(one.x, many.x));
+  CHECK(same_bits(one.v, many.v));
+  REQUIRE(one.events.size() == many.events.size());
+  for (std::size_t k = 0; k < one.events.size(); ++k)
+    REQUIRE(std::memcmp(&one.events[k], &many.events[k], sizeof(pinsim_event)) == 0);
+  CHECK(std::memcmp(&one.stats, &many.stats, sizeof(SdfStats)) == 0);
+}
+
 }  // namespace
 
 TEST_CASE("sdf threads: a crowd with ball contacts gives the same bits on 1, 2 and 3 threads") {
-  const Run one = crowd_run(1);
+  const Run one = run(1, crowd(), 80);
   // both kinds of events, many of them: every stage has work
   REQUIRE(one.pair_events > 1000);
   REQUIRE(one.obstacle_events > 100);
-  for (int threads : {2, 3}) {
-    const Run many = crowd_run(threads);
-    CHECK(same_bits(one.x, many.x));
-    CHECK(same_bits(one.v, many.v));
-    REQUIRE(one.events.size() == many.events.size());
-    for (std::size_t k = 0; k < one.events.size(); ++k)
-      REQUIRE(std::memcmp(&one.events[k], &many.events[k], sizeof(pinsim_event)) == 0);
-    CHECK(std::memcmp(&one.stats, &many.stats, sizeof(SdfStats)) == 0);
-  }
+  for (int threads : {2, 3}) require_same(one, run(threads, crowd(), 80));
+}
+
+TEST_CASE("sdf threads: a resting pile gives the same bits on 1, 2 and 3 threads") {
+  // Each step's hits touch at the start, in order of (i, j): on threads the particles in
+  // hits are marched while the resolution is still going, as soon as it is past them
+  // (several times, as when they are marched depends on the threads' timing).
+  const Run one = run(1, pile(), 40);
+  REQUIRE(one.pair_events > 40 * 2000);  // about one hit per ball and step
+  for (int threads : {2, 2, 2, 3}) require_same(one, run(threads, pile(), 40));
 }
