@@ -25,12 +25,16 @@
 // sdf_speedup = its wall time over the N-thread one (sdf_hash_same: 1 if both end in the same
 // positions, to the bit). For cases with ball-ball contacts, sdf_no_pairs_ns is the same
 // balls with contacts off (1 thread) and pairs_over_no_pairs = sdf_ns / sdf_no_pairs_ns at 1
-// thread.
-// Usage: bench_run [--quick] [--threads N] [--work DIR] [--pinsim PATH] [--only TEXT]
-//                  [--backend-only]
+// thread. With --repeat K those loops run K times in turn (N threads, 1 thread, contacts off):
+// each figure is the median of its K, and the two ratios the medians of the K ratios of a
+// round (on a shared host the rounds see the same load, so the ratios vary less than the
+// figures).
+// Usage: bench_run [--quick] [--threads N] [--repeat K] [--work DIR] [--pinsim PATH]
+//                  [--only TEXT] [--backend-only]
 //   --quick         small cases, a smoke test (ctest): checks it runs, no timing assertions
 //   --threads       threads of the backend-alone loops and of `pinsim run --threads N` when
 //                   pinsim has that flag (else a note)
+//   --repeat        rounds of the backend-alone loops (default 1)
 //   --work          folder for scenes and run output (default: a new folder under /tmp, removed)
 //   --only          only the cases whose name contains TEXT
 //   --backend-only  only the backend-alone figures (no `pinsim run`)
@@ -40,6 +44,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -71,6 +76,7 @@ namespace {
 struct Options {
   bool quick = false;
   int threads = 0;  ///< 0: not given
+  int repeat = 1;   ///< rounds of the backend-alone loops
   std::string pinsim = PINSIM_EXE;
   fs::path work;
   bool threads_supported = false;
@@ -196,6 +202,26 @@ struct BackendFigures {
   double cpu_ns = NAN;   ///< process CPU time (all threads) per ball-step
   double wall_ns = NAN;  ///< wall time per ball-step
   uint64_t hash = 0;     ///< the positions at the end (BenchWorld::hash)
+};
+
+/// The median of v (the mean of the middle two for an even count; NaN if empty).
+double median_of(std::vector<double> v) {
+  if (v.empty()) return NAN;
+  std::sort(v.begin(), v.end());
+  const std::size_t m = v.size() / 2;
+  return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+}
+
+/// The figures of the rounds of one loop: their medians, the first round's hash.
+struct Rounds {
+  std::vector<double> cpu, wall;
+  uint64_t first_hash = 0;
+  void add(const BackendFigures& f) {
+    if (cpu.empty()) first_hash = f.hash;
+    cpu.push_back(f.cpu_ns);
+    wall.push_back(f.wall_ns);
+  }
+  BackendFigures median() const { return {median_of(cpu), median_of(wall), first_hash}; }
 };
 
 double process_cpu_ns() {
@@ -415,6 +441,12 @@ int main(int argc, char** argv) {
       o.quick = true;
     } else if (a == "--threads" && i + 1 < argc) {
       o.threads = std::atoi(argv[++i]);
+    } else if (a == "--repeat" && i + 1 < argc) {
+      o.repeat = std::atoi(argv[++i]);
+      if (o.repeat < 1) {
+        std::fprintf(stderr, "bench_run: --repeat: expected a whole number of rounds >= 1\n");
+        return 2;
+      }
     } else if (a == "--work" && i + 1 < argc) {
       o.work = argv[++i];
       keep = true;
@@ -426,8 +458,8 @@ int main(int argc, char** argv) {
       only = argv[++i];
     } else {
       std::fprintf(stderr,
-                   "usage: bench_run [--quick] [--threads N] [--work DIR] [--pinsim PATH] [--only "
-                   "TEXT] [--backend-only]\n");
+                   "usage: bench_run [--quick] [--threads N] [--repeat K] [--work DIR] [--pinsim "
+                   "PATH] [--only TEXT] [--backend-only]\n");
       return 2;
     }
   }
@@ -473,13 +505,34 @@ int main(int argc, char** argv) {
     const double dt = c.scene["time"]["dt"];
     const int steps = static_cast<int>(std::lround(c.scene["time"]["duration"].get<double>() / dt));
     BackendFigures sdf, sdf1, no_pairs;
+    double speedup = NAN, over_no_pairs = NAN;
+    bool same_hash = true;
     double box2d = NAN;
     if (c.balls) {
       const json sp = params_for<SdfBackend>(c.scene["backend"]["params"]);
-      sdf = backend_ns<SdfBackend>(c, sp, c.contacts, steps, gx, gy, threads);
-      sdf1 = threads > 1 ? backend_ns<SdfBackend>(c, sp, c.contacts, steps, gx, gy, 1) : sdf;
-      if (!c.contacts.is_null())
-        no_pairs = backend_ns<SdfBackend>(c, sp, {{"particles", false}}, steps, gx, gy, 1);
+      // o.repeat rounds in turn; the medians (Rounds)
+      Rounds n, one, off;
+      std::vector<double> speedups, overs;
+      for (int r = 0; r < o.repeat; ++r) {
+        const BackendFigures a = backend_ns<SdfBackend>(c, sp, c.contacts, steps, gx, gy, threads);
+        const BackendFigures b =
+            threads > 1 ? backend_ns<SdfBackend>(c, sp, c.contacts, steps, gx, gy, 1) : a;
+        n.add(a);
+        one.add(b);
+        speedups.push_back(b.wall_ns / a.wall_ns);
+        same_hash = same_hash && a.hash == n.first_hash && b.hash == n.first_hash;
+        if (!c.contacts.is_null()) {
+          const BackendFigures z =
+              backend_ns<SdfBackend>(c, sp, {{"particles", false}}, steps, gx, gy, 1);
+          off.add(z);
+          overs.push_back(b.cpu_ns / z.cpu_ns);
+        }
+      }
+      sdf = n.median();
+      sdf1 = one.median();
+      no_pairs = off.median();
+      speedup = median_of(speedups);
+      over_no_pairs = median_of(overs);
       try {
         box2d = backend_ns<Box2dBackend>(c, params_for<Box2dBackend>(box2d_params), c.contacts,
                                          c.box2d_steps, gx, gy, 1)
@@ -507,8 +560,7 @@ int main(int argc, char** argv) {
         static_cast<unsigned long long>(out.events_rows),
         static_cast<unsigned long long>(out.contacts_rows), out.loop_s,
         static_cast<unsigned long long>(out.contacts), out.events_mb, out.contacts_mb, threads,
-        sdf.wall_ns, sdf1.wall_ns, sdf1.wall_ns / sdf.wall_ns, sdf.hash == sdf1.hash ? 1 : 0,
-        no_pairs.cpu_ns, sdf1.cpu_ns / no_pairs.cpu_ns);
+        sdf.wall_ns, sdf1.wall_ns, speedup, same_hash ? 1 : 0, no_pairs.cpu_ns, over_no_pairs);
     std::fflush(stdout);
     // Sane figures: every measured one finite and positive (no timing limits); the same
     // positions for any thread count.
@@ -520,8 +572,9 @@ int main(int argc, char** argv) {
         ++failures;
         break;
       }
-    if (c.balls && sdf.hash != sdf1.hash) {
-      std::fprintf(stderr, "bench_run: %s: 1 and %d threads end in different positions\n",
+    if (c.balls && !same_hash) {
+      std::fprintf(stderr,
+                   "bench_run: %s: 1 and %d threads (or two rounds) end in different positions\n",
                    c.name.c_str(), threads);
       ++failures;
     }
