@@ -477,16 +477,17 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
 }
 
 // A particle in no hit of the step gets no velocity change from the pair contacts, so its
-// march (march_or_reuse, as in the serial loop) does not wait for them: one thread orders,
-// resolves and emits the hits while the others march those particles in fixed chunks. A
-// particle in hits may be marched once its last hit is resolved: while the resolution
-// runs, the marching thread goes on with the particles in hits of the chunks it is past
-// (resolved_below()), keeping those in a hit that does not touch at the start apart; it
-// stops when the resolution ends or makes it wait too long. Then every chunk's particles
-// left, on threads. A particle's march reads only its own changes, so it gives the same
-// bits whenever and wherever it runs after its last hit. Each chunk's events are kept in
-// lists by particle; the pair events are emitted first, then the chunks' lists merged by
-// particle (a particle is in one): the order of the serial loop, for any thread count.
+// march (march_or_reuse, as in the serial loop) does not wait for them: one side orders,
+// resolves and emits the hits (on one thread; from three, its waves on several) while the
+// others march those particles in fixed chunks. A particle in hits may be marched once its
+// last hit is resolved: while the serial resolution runs, the marching thread goes on with
+// the particles in hits of the chunks it is past (resolved_below()), keeping those in a hit
+// that does not touch at the start apart; it stops when the pair events are emitted or when
+// it has waited 50 us for the next chunk. Then every chunk's particles left, on threads. A
+// particle's march reads only its own changes, so it gives the same bits whenever and wherever it
+// runs after its last hit. Each chunk's events are kept in lists by particle; the pair events are
+// emitted first, then the chunks' lists merged by particle (a particle is in one): the order of the
+// serial loop, for any thread count.
 void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, EventSink& ev) {
   pairs_.find(s, dt, true);
   rest_.resize(s.n);
@@ -527,6 +528,10 @@ void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, Event
       [&] {
         // (from three threads its waves may use the others; isolated, so that this thread
         // never runs the other side's work beneath them)
+        struct Done {  // (also if this side throws: the marching side stops waiting)
+          std::atomic<bool>& flag;
+          ~Done() { flag.store(true, std::memory_order_release); }
+        } done{resolved};
         if (available_threads() > 2)
           isolated([&] { pairs_.resolve_found(s, dt, particle_e_, true); });
         else
@@ -534,14 +539,13 @@ void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, Event
         const pinsim_event_sink to{&pair_events_, &push_event};
         EventSink sink(&to);
         pairs_.emit_events(sink);
-        resolved.store(true, std::memory_order_release);
       },
       [&] {
         march_chunked(s.n, free_one, chunk_events_);
         for (std::size_t c = 0; c < chunks; ++c) {
           const std::size_t e = std::min(s.n, (c + 1) * kChunk);
           if (!spin_until([&] { return pairs_.resolved_below() >= e; }, resolved)) return;
-          march_hits(c, false);
+          march_hits(c, pairs_.resolved_below() == PairContacts::kAllResolved);
           marched_early_[c] = 1;
         }
       });
@@ -551,7 +555,9 @@ void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, Event
       return;
     }
     if (kept_apart_[c].empty()) return;
-    for (const uint32_t i : kept_apart_[c]) march_into(c, i, late_stats_[c]);
+    SdfStats st;  // (counted here, added once: neighbouring chunks share cache lines)
+    for (const uint32_t i : kept_apart_[c]) march_into(c, i, st);
+    add(late_stats_[c], st);
     auto& late = late_events_[c];
     std::inplace_merge(
         late.begin(), late.begin() + static_cast<std::ptrdiff_t>(late_mark_[c]), late.end(),

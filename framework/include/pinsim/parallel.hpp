@@ -99,8 +99,9 @@ void for_chunks(std::size_t n, std::size_t chunk, Body&& body,
 
 /// Runs first() and second() side by side when more than one thread is available (either on
 /// either thread; loops inside them share the threads), else first() then second(). For two
-/// pieces of work that share nothing they write. An exception from either reaches the
-/// caller after both end.
+/// pieces of work that share nothing they write, or whose sharing the caller orders itself
+/// (atomics, with waits that never depend on the other piece having started). An exception from
+/// either reaches the caller after both end.
 template <class First, class Second>
 void run_both(First&& first, Second&& second) {
 #ifdef PINSIM_WITH_TBB

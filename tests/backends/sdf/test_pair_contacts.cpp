@@ -222,8 +222,10 @@ TEST_CASE("pair contacts: a particle's changes are final once the resolution is 
   // Here a second thread resolves crowded steps (most hits touch at the start) while this
   // one copies each particle's changes as soon as that says they are final: every copy must
   // equal the changes at the end, to the bit.
+  // (six crowds, and more until a copy was made before the end: on a loaded machine this
+  // thread may not run while the other resolves a whole step)
   std::size_t early = 0, copied = 0, late = 0;
-  for (unsigned seed : {31u, 32u, 33u, 34u, 35u, 36u}) {
+  for (unsigned seed = 31; seed < 37 || (early == 0 && seed < 131); ++seed) {
     Balls b = crowd(3000, 0.3, seed);
     const MutableState ms = b.state(0.0);
     const double dt = 2e-4;  // 0.2 mm of travel at most: few hits but those touching
@@ -267,11 +269,12 @@ TEST_CASE("pair contacts: a particle's changes are final once the resolution is 
       }
     }
   }
-  // both kinds of hits: particles final early and particles that wait for every hit (how
-  // many were copied early depends on the threads' timing: reported, not required)
+  // both kinds of hits: particles final early and particles that wait for every hit; some
+  // copies made while the resolution was still going (how many depends on the timing)
   INFO("copied " << copied << ", of them before the end " << early << ", late " << late);
   CHECK(copied > 6000);
   CHECK(late > 0);
+  CHECK(early > 0);
 }
 
 TEST_CASE("pair contacts: separate crowds run as islands, with the same bits") {
