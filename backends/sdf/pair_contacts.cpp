@@ -30,14 +30,13 @@ constexpr uint32_t kIslandTask = 256;
 //    lies inside its enlarged box (then any two that overlap are listed).
 // 2. order_hits: the hits in order of (tau, i, j) (unique keys: any sort gives this order).
 // 3. resolve: in that order, each hit recomputes its time of impact from the current
-//    reference states of its two particles and applies the impulse (one thread publishes
-//    how far it is: resolved_below()). A hit reads and writes
+//    reference states of its two particles and applies the impulse. A hit reads and writes
 //    only its two particles' states, so the result is the same for any order of the hits
-//    that keeps each particle's hits in their order: one thread takes them in order; on
-//    threads, the islands of the contact graph side by side (resolve_islands), or else waves
-//    (a hit's wave is one after the last wave of either particle's earlier hits: a greedy
-//    colouring of the contact graph in time order), the hits of a wave share no particle and
-//    run at once, waves one after another.
+//    that keeps each particle's hits in their order: one thread takes them in order (and
+//    publishes how far it is: resolved_below()); on threads, the islands of the contact
+//    graph side by side (resolve_islands), or else waves (a hit's wave is one after the last
+//    wave of either particle's earlier hits: a greedy colouring of the contact graph in time
+//    order), the hits of a wave share no particle and run at once, waves one after another.
 // 4. each particle's velocity changes are a chain through the outcomes of its hits, linked as
 //    they are resolved (in order: a particle's hits are); emit_events: the events in order of
 //    (tau, i, j), as one serial loop over the sorted hits would give.
