@@ -204,15 +204,8 @@ struct BackendFigures {
   uint64_t hash = 0;     ///< the positions at the end (BenchWorld::hash)
 };
 
-/// The median of v (the mean of the middle two for an even count; NaN if empty).
-double median_of(std::vector<double> v) {
-  if (v.empty()) return NAN;
-  std::sort(v.begin(), v.end());
-  const std::size_t m = v.size() / 2;
-  return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
-}
-
-/// The figures of the rounds of one loop: their medians, the first round's hash.
+/// The figures of the rounds of one loop (at least one): their medians, the first round's
+/// hash.
 struct Rounds {
   std::vector<double> cpu, wall;
   uint64_t first_hash = 0;
@@ -221,7 +214,7 @@ struct Rounds {
     cpu.push_back(f.cpu_ns);
     wall.push_back(f.wall_ns);
   }
-  BackendFigures median() const { return {median_of(cpu), median_of(wall), first_hash}; }
+  BackendFigures medians() const { return {median(cpu), median(wall), first_hash}; }
 };
 
 double process_cpu_ns() {
@@ -528,11 +521,13 @@ int main(int argc, char** argv) {
           overs.push_back(b.cpu_ns / z.cpu_ns);
         }
       }
-      sdf = n.median();
-      sdf1 = one.median();
-      no_pairs = off.median();
-      speedup = median_of(speedups);
-      over_no_pairs = median_of(overs);
+      sdf = n.medians();
+      sdf1 = one.medians();
+      speedup = median(speedups);
+      if (!overs.empty()) {
+        no_pairs = off.medians();
+        over_no_pairs = median(overs);
+      }
       try {
         box2d = backend_ns<Box2dBackend>(c, params_for<Box2dBackend>(box2d_params), c.contacts,
                                          c.box2d_steps, gx, gy, 1)
