@@ -1,8 +1,9 @@
 // The sdf backend on threads with ball-ball contacts (docs/threads.md): the pair contacts'
 // stages and the marches split their particles into fixed chunks and combine them in chunk
 // order, and the hits are ordered by their (time, i, j) keys, never by the threads. A crowd
-// falling on a floor and a bumper must give the same positions, velocities, events and
-// counters to the bit with 1 (the serial loop), 2 and 3 threads.
+// falling on a floor and a bumper, and a pile resting on the floor, must give the same
+// positions, velocities, events and counters to the bit with 1 (the serial loop), 2 and 3
+// threads.
 #include <catch2/catch.hpp>
 #include <cmath>
 #include <cstring>
