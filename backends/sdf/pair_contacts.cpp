@@ -38,28 +38,31 @@ constexpr uint32_t kIslandTask = 256;
 //    wave of either particle's earlier hits: a greedy colouring of the contact graph in time
 //    order), the hits of a wave share no particle and run at once, waves one after another.
 // 4. each particle's velocity changes are a chain through the outcomes of its hits, linked as
-//    they are resolved (in order: a particle's hits are); emit_events: the events in order of
-//    (tau, i, j), as one serial loop over the sorted hits would give.
+//    they are resolved (in order: a particle's hits are); the events in order of (tau, i, j),
+//    as one serial loop over the sorted hits gives them: on one thread each as its hit fires
+//    (its outcome still in cache), else after the waves or islands in that order.
 void PairContacts::schedule(const MutableState& s, double dt, double e, bool threads, EventSink& ev,
                             DriftRecorder* tape) {
   find(s, dt, threads, tape);
-  resolve_found(s, dt, e, threads);
-  emit_events(ev);
+  resolve_found(s, dt, e, threads, ev);
 }
 
-void PairContacts::find(const MutableState& s, double dt, bool threads, DriftRecorder* tape) {
+std::size_t PairContacts::find(const MutableState& s, double dt, bool threads, DriftRecorder* tape,
+                               double max_travel) {
   counts_ = Counts{};
   resolved_below_.store(0, std::memory_order_relaxed);
   sim_t_ = s.t;
   tape_ = tape;
   if (tape_ != nullptr) threads = false;  // the tape takes the hits in their order
-  find_hits(s, dt, threads);              // (scan_list marks the particles in hits: in_hit_)
+  // (scan_list marks the particles in hits: in_hit_)
+  return find_hits(s, dt, threads, max_travel);
 }
 
-void PairContacts::resolve_found(const MutableState& s, double dt, double e, bool threads) {
+void PairContacts::resolve_found(const MutableState& s, double dt, double e, bool threads,
+                                 EventSink& ev) {
   if (tape_ != nullptr) threads = false;
   order_hits(threads, dt);
-  resolve(s, dt, e, threads);
+  resolve(s, dt, e, threads, ev);
 }
 
 // The keys (tau, i, j) are unique, so any correct sort gives the same order. The hits that
@@ -183,7 +186,8 @@ bool PairContacts::resolve_hit(std::size_t h, double dt, double e) {
   return true;
 }
 
-void PairContacts::resolve(const MutableState& s, double dt, double e, bool threads) {
+void PairContacts::resolve(const MutableState& s, double dt, double e, bool threads,
+                           EventSink& ev) {
   const std::size_t hits = hits_.size();
   outcome_.resize(hits);
   next_change_.resize(2 * hits);
@@ -199,11 +203,18 @@ void PairContacts::resolve(const MutableState& s, double dt, double e, bool thre
     for (std::size_t h = 0; h < hits; ++h) {
       if (h % kPublish == 0)
         resolved_below_.store(h < touching ? hits_[h].i : s.n, std::memory_order_release);
-      counts_.impulses += resolve_hit(h, dt, e);
+      if (resolve_hit(h, dt, e)) {
+        ++counts_.impulses;
+        emit_event(h, ev);
+      }
     }
   } else {
     if (!resolve_islands(s, dt, e)) resolve_waves(s.n, dt, e);
-    for (const Outcome& o : outcome_) counts_.impulses += o.fired;
+    for (std::size_t h = 0; h < hits; ++h)
+      if (outcome_[h].fired) {
+        ++counts_.impulses;
+        emit_event(h, ev);
+      }
   }
   resolved_below_.store(kAllResolved, std::memory_order_release);
 }
@@ -299,23 +310,20 @@ bool PairContacts::resolve_islands(const MutableState& s, double dt, double e) {
   return true;
 }
 
-void PairContacts::emit_events(EventSink& ev) const {
-  for (std::size_t h = 0; h < hits_.size(); ++h) {
-    const Outcome& o = outcome_[h];
-    if (!o.fired) continue;
-    pinsim_event event{};
-    event.t = sim_t_ + o.tau;
-    event.particle = hits_[h].i;
-    event.obstacle = -1;
-    event.other = hits_[h].j;
-    event.point[0] = o.point.x();
-    event.point[1] = o.point.y();
-    event.normal[0] = o.nrm.x();
-    event.normal[1] = o.nrm.y();
-    event.vn_before = o.vn;
-    event.vn_after = o.vn_after;
-    ev.emit(event);
-  }
+void PairContacts::emit_event(std::size_t h, EventSink& ev) const {
+  const Outcome& o = outcome_[h];
+  pinsim_event event{};
+  event.t = sim_t_ + o.tau;
+  event.particle = hits_[h].i;
+  event.obstacle = -1;
+  event.other = hits_[h].j;
+  event.point[0] = o.point.x();
+  event.point[1] = o.point.y();
+  event.normal[0] = o.nrm.x();
+  event.normal[1] = o.nrm.y();
+  event.vn_before = o.vn;
+  event.vn_after = o.vn_after;
+  ev.emit(event);
 }
 
 }  // namespace pinsim::sdf

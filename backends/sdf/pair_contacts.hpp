@@ -46,13 +46,16 @@ class PairContacts {
   /// is resolved, in the order of the hits (then threads must be false).
   void schedule(const MutableState& s, double dt, double e, bool threads, EventSink& ev,
                 DriftRecorder* tape = nullptr);
-  /// schedule() in three parts, for a caller with other work between them: find() the
-  /// step's hits (then in_hit(i) tells whether particle i may change in this step),
-  /// resolve_found() them (then changes(i) holds), then emit_events() (the events in order,
-  /// any time before the next step).
-  void find(const MutableState& s, double dt, bool threads, DriftRecorder* tape = nullptr);
-  void resolve_found(const MutableState& s, double dt, double e, bool threads);
-  void emit_events(EventSink& ev) const;
+  /// schedule() in two parts, for a caller with other work between them: find() the
+  /// step's hits (then in_hit(i) tells whether particle i may change in this step), then
+  /// resolve_found() them (then changes(i) holds) and emit their events into ev in order
+  /// (from the calling thread; on one thread each as its hit fires).
+  /// find() first checks every particle with finite mass: the first (in index order) whose
+  /// velocity travels beyond `max_travel` along an axis in dt (or is NaN) is returned and
+  /// nothing else is done; else s.n (always with max_travel = HUGE_VAL: no check).
+  std::size_t find(const MutableState& s, double dt, bool threads, DriftRecorder* tape = nullptr,
+                   double max_travel = HUGE_VAL);
+  void resolve_found(const MutableState& s, double dt, double e, bool threads, EventSink& ev);
   /// Whether particle i is in one of the hits find() found.
   bool in_hit(std::size_t i) const { return in_hit_[i] != 0; }
   /// Whether particle i is in a hit that does not touch at the start (tau > 0).
@@ -118,10 +121,12 @@ class PairContacts {
     last_change_[p] = k;
   }
 
-  void find_hits(const MutableState& s, double dt, bool threads);
+  /// The hits, or the first particle too fast (find()).
+  std::size_t find_hits(const MutableState& s, double dt, bool threads, double max_travel);
   /// The start states of the step and the particles whose swept box is not inside their
-  /// box of the list (leavers_); whether a list exists for these particles.
-  bool sweep(const MutableState& s, double dt, bool threads);
+  /// box of the list (leavers_); whether a list exists for these particles. too_fast_: the
+  /// first particle too fast (find()), s.n if none.
+  bool sweep(const MutableState& s, double dt, bool threads, double max_travel);
   /// The list of nearby pairs anew: enlarged boxes, a grid over them, pairs by lower index.
   void build_list(const MutableState& s, double dt, bool threads);
   /// Particle i's enlarged box (NaN: no finite swept box, left out of the list).
@@ -140,7 +145,9 @@ class PairContacts {
                               std::vector<Hit>& out) const;
   void order_hits(bool threads, double dt);
   void sort_touching(std::size_t count);
-  void resolve(const MutableState& s, double dt, double e, bool threads);
+  void resolve(const MutableState& s, double dt, double e, bool threads, EventSink& ev);
+  /// The event of hit h (fired).
+  void emit_event(std::size_t h, EventSink& ev) const;
   void resolve_waves(std::size_t n, double dt, double e);
   /// Each hit's wave (for the waves on threads); the number of waves.
   uint32_t assign_waves(std::size_t n);
@@ -163,6 +170,8 @@ class PairContacts {
   std::vector<std::pair<uint32_t, uint32_t>> list_;   ///< listed pairs (i < j), by i
   std::size_t listed_n_ = kNoList;                    ///< particles of the list (kNoList: no list)
   std::vector<std::vector<uint32_t>> chunk_leavers_;  ///< per particle chunk: boxes outside
+  std::vector<std::size_t> chunk_too_fast_;           ///< per particle chunk: first too fast
+  std::size_t too_fast_ = 0;                          ///< sweep()'s first too fast
   std::vector<uint32_t> leavers_;  ///< this step's particles outside their fat boxes
   std::vector<std::pair<uint32_t, uint32_t>> extra_;  ///< pairs (i < j) of moved particles
   std::vector<char> moved_;          ///< per particle: given a new box since the build

@@ -68,8 +68,10 @@ void chunked(bool threads, std::size_t n, std::size_t chunk, Body&& body,
 // or no list yet, or a list grown a quarter larger by such moves, or an eighth of the
 // particles moved, or one kept kKeep steps: boxes grown for motion that has since stopped)
 // build the list anew.
-void PairContacts::find_hits(const MutableState& s, double dt, bool threads) {
-  const bool kept = sweep(s, dt, threads);
+std::size_t PairContacts::find_hits(const MutableState& s, double dt, bool threads,
+                                    double max_travel) {
+  const bool kept = sweep(s, dt, threads, max_travel);
+  if (too_fast_ < s.n) return too_fast_;
   counts_.rebuilt = !kept || leavers_.size() > kMoves || steps_kept_ >= kKeep ||
                     4 * (dead_ + extra_.size()) > list_.size() + 256 ||
                     kMovedShare * (moved_ids_.size() + leavers_.size()) > listed_n_ + kMovedFloor;
@@ -82,25 +84,33 @@ void PairContacts::find_hits(const MutableState& s, double dt, bool threads) {
   }
   counts_.listed = list_.size() - dead_ + extra_.size();
   scan_list(dt, threads);
+  return s.n;
 }
 
 // Start states, and the particles whose swept box is not inside their enlarged box (at most
 // kMoves + 1 per chunk: more build the list anew anyway). False if there is no list for
-// these particles.
-bool PairContacts::sweep(const MutableState& s, double dt, bool threads) {
+// these particles. On the way each chunk's first particle too fast (find()): the first of
+// them in chunk order is the first in index order.
+bool PairContacts::sweep(const MutableState& s, double dt, bool threads, double max_travel) {
   const std::size_t n = s.n;
   start_.resize(n);
   const bool listed = listed_n_ == n;
   const std::size_t chunks = chunk_count(n, kParticles);
   chunk_leavers_.resize(std::max(chunk_leavers_.size(), chunks));
+  chunk_too_fast_.assign(chunks, n);
+  const bool check = max_travel < HUGE_VAL;
   auto sweep_chunk = [&](std::size_t c, std::size_t b, std::size_t end) {
     std::vector<uint32_t>& out = chunk_leavers_[c];
     out.clear();
+    std::size_t fast = n;
     for (std::size_t i = b; i < end; ++i) {
       const bool moves = s.inv_mass[i] > 0.0;
       const Start p{s.x(0, i),   s.x(1, i),    moves ? s.v(0, i) : 0.0, moves ? s.v(1, i) : 0.0,
                     s.radius[i], s.inv_mass[i]};
       start_[i] = p;
+      if (check && !(std::abs(p.vx) * dt <= max_travel && std::abs(p.vy) * dt <= max_travel) &&
+          fast == n)
+        fast = i;
       if (!listed || out.size() > kMoves) continue;
       // a particle left out of the list (no finite box) must still have none
       const Box bx = swept_box(p, dt);
@@ -111,8 +121,15 @@ bool PairContacts::sweep(const MutableState& s, double dt, bool threads) {
                               : std::isnan(f.x0);
       if (!inside) out.push_back(static_cast<uint32_t>(i));
     }
+    chunk_too_fast_[c] = fast;
   };
   chunked(threads, n, kParticles, sweep_chunk, Schedule::Even);
+  too_fast_ = n;
+  for (const std::size_t i : chunk_too_fast_)
+    if (i < n) {
+      too_fast_ = i;
+      break;
+    }
   leavers_.clear();
   for (std::size_t c = 0; c < chunks && leavers_.size() <= kMoves; ++c)
     leavers_.insert(leavers_.end(), chunk_leavers_[c].begin(), chunk_leavers_[c].end());

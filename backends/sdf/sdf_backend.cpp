@@ -273,8 +273,8 @@ double SdfBackend::slide_step(std::size_t k, const Vec2& x, const Vec2& v, doubl
 // updated by earlier pairs, each impulse J = -(1 + e) vn / (w_i + w_j) (w = inverse masses)
 // becoming a velocity change at tau that the obstacle march applies on the way. Obstacle contacts
 // inside the step do not re-schedule pairs.
-void SdfBackend::schedule_pairs(const MutableState& s, double dt, bool threads, EventSink& ev) {
-  pairs_.schedule(s, dt, particle_e_, threads, ev, tape_.on() ? &tape_ : nullptr);
+void SdfBackend::resolve_pairs(const MutableState& s, double dt, bool threads, EventSink& ev) {
+  pairs_.resolve_found(s, dt, particle_e_, threads, ev);
   stats_.pair_contacts += pairs_.counts().impulses;
 }
 
@@ -434,20 +434,24 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
   // (beyond the limit the march cannot resolve the step: refuse, never freeze silently;
   // checked for every particle before any moves or meets another, so a refused step changes
   // nothing; in fixed chunks on threads for large states, the first offender in particle
-  // order named; while recording drifts, one by one in particle order)
+  // order named; while recording drifts, one by one in particle order. With pair contacts
+  // their first pass over the particles checks, before it finds any hit.)
   const bool threads = !tape_.on() && s.n >= kParallelParticles && available_threads() > 1;
-  if (const std::size_t i = too_fast(s, dt, threads); i < s.n)
+  const bool pairs = particle_contacts_ && s.n > 1;
+  const std::size_t fast =
+      pairs ? pairs_.find(s, dt, threads, tape_.on() ? &tape_ : nullptr, kMaxMagnitude)
+            : too_fast(s, dt, threads);
+  if (const std::size_t i = fast; i < s.n)
     throw Error("particle " + std::to_string(i) + " at t = " + num(t0) + " s: velocity (" +
                 num(s.v(0, i)) + ", " + num(s.v(1, i)) +
                 ") travels beyond the sdf backend's limit of 1e+09 per step "
                 "(backends/sdf/README.md, Limits)");
-  const bool pairs = particle_contacts_ && s.n > 1;
   if (pairs && threads) {
     march_beside_pairs(s, t0, dt, ev);
     return;
   }
   if (pairs)
-    schedule_pairs(s, dt, threads, ev);
+    resolve_pairs(s, dt, threads, ev);
   else if (tape_.on())
     pairs_.clear(s.n);  // recording: every particle through march_with_changes
   // Each particle with finite mass along its path, contacts resolved on the way. Particles
@@ -489,7 +493,6 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
 // emitted first, then the chunks' lists merged by particle (a particle is in one): the order of the
 // serial loop, for any thread count.
 void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, EventSink& ev) {
-  pairs_.find(s, dt, true);
   rest_.resize(s.n);
   const std::size_t chunks = chunk_count(s.n, kChunk);
   chunk_stats_.assign(chunks, SdfStats{});
@@ -532,13 +535,12 @@ void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, Event
           std::atomic<bool>& flag;
           ~Done() { flag.store(true, std::memory_order_release); }
         } done{resolved};
-        if (available_threads() > 2)
-          isolated([&] { pairs_.resolve_found(s, dt, particle_e_, true); });
-        else
-          pairs_.resolve_found(s, dt, particle_e_, false);
         const pinsim_event_sink to{&pair_events_, &push_event};
         EventSink sink(&to);
-        pairs_.emit_events(sink);
+        if (available_threads() > 2)
+          isolated([&] { pairs_.resolve_found(s, dt, particle_e_, true, sink); });
+        else
+          pairs_.resolve_found(s, dt, particle_e_, false, sink);
       },
       [&] {
         march_chunked(s.n, free_one, chunk_events_);

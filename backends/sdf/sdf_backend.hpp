@@ -75,11 +75,11 @@ class SdfBackend : public FieldBackend {
   /// Forgets what the steps so far learned about the timelines (speed bounds, segment
   /// hints, still epochs, rest records), as a newly created backend has.
   void reset_timeline_caches();
-  /// Particle-particle contacts within the step: fills pairs_ (see README), on threads if
-  /// `threads`.
-  void schedule_pairs(const MutableState& s, double dt, bool threads, EventSink& ev);
-  /// The step on threads with pair contacts: the particles in no hit marched while the hits
-  /// are resolved, the others as soon as their hits are.
+  /// Particle-particle contacts within the step, their hits found (pairs_.find()):
+  /// resolved into pairs_ (see README) and their events emitted, on threads if `threads`.
+  void resolve_pairs(const MutableState& s, double dt, bool threads, EventSink& ev);
+  /// The step on threads with pair contacts, their hits found: the particles in no hit
+  /// marched while the hits are resolved, the others as soon as their hits are.
   void march_beside_pairs(MutableState& s, double t0, double dt, EventSink& ev);
   /// particle(i, stats, sink) for particles 0..n-1 in fixed chunks on threads (events[c],
   /// chunk_stats_[c]: per chunk).

@@ -243,7 +243,10 @@ TEST_CASE("pair contacts: a particle's changes are final once the resolution is 
       done[i] = 1;
       ++copied;
     };
-    std::thread resolver([&] { pc.resolve_found(ms, dt, 0.5, false); });
+    std::thread resolver([&] {
+      EventSink none(nullptr);
+      pc.resolve_found(ms, dt, 0.5, false, none);
+    });
     for (;;) {
       const std::size_t below = pc.resolved_below();
       const bool all = below == PairContacts::kAllResolved;

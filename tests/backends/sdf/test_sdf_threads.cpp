@@ -13,6 +13,7 @@
 #endif
 
 #include "sdf_harness.hpp"
+#include "test_support.hpp"
 
 using namespace pinsim;
 using namespace pinsim::sdf;
@@ -28,8 +29,23 @@ struct Run {
   std::size_t pair_events = 0, obstacle_events = 0;
 };
 
-/// `steps` steps of 1 ms of the balls under gravity above a floor and a round bumper, on
-/// `threads` threads.
+/// A floor and a round bumper; ball contacts if `pairs`.
+json table(bool pairs = true) {
+  return {
+      {"obstacles",
+       {obstacle("floor", {{"type", "box"}, {"center", {0.0, -0.5}}, {"half_size", {2.0, 0.5}}},
+                 0.5, 0.1),
+        obstacle("bumper", {{"type", "circle"}, {"center", {0.0, 0.1}}, {"radius", 0.1}}, 0.9)}},
+      {"contacts", {{"particles", pairs}, {"restitution", 0.5}}}};
+}
+
+Run result(const Sim& sim) {
+  Run r{sim.x, sim.v, sim.events, sim.backend->stats()};
+  for (const pinsim_event& e : sim.events) ++(e.obstacle < 0 ? r.pair_events : r.obstacle_events);
+  return r;
+}
+
+/// `steps` steps of 1 ms of the balls under gravity above the table, on `threads` threads.
 Run run(int threads, const std::vector<Ball>& balls, int steps) {
 #ifdef PINSIM_WITH_TBB
   const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
@@ -37,17 +53,9 @@ Run run(int threads, const std::vector<Ball>& balls, int steps) {
 #else
   (void)threads;
 #endif
-  const json scene = {
-      {"obstacles",
-       {obstacle("floor", {{"type", "box"}, {"center", {0.0, -0.5}}, {"half_size", {2.0, 0.5}}},
-                 0.5, 0.1),
-        obstacle("bumper", {{"type", "circle"}, {"center", {0.0, 0.1}}, {"radius", 0.1}}, 0.9)}},
-      {"contacts", {{"particles", true}, {"restitution", 0.5}}}};
-  Sim sim(scene, balls);
+  Sim sim(table(), balls);
   for (int s = 0; s < steps; ++s) sim.step(1e-3, Vec2(0.0, -9.81));
-  Run r{sim.x, sim.v, sim.events, sim.backend->stats()};
-  for (const pinsim_event& e : sim.events) ++(e.obstacle < 0 ? r.pair_events : r.obstacle_events);
-  return r;
+  return result(sim);
 }
 
 /// 1500 balls of 1 cm, 2.1 cm apart, moving down and sideways at different speeds (every
@@ -113,4 +121,54 @@ TEST_CASE("sdf threads: a resting pile gives the same bits on 1, 2 and 3 threads
   const Run one = run(1, pile(), 40);
   REQUIRE(one.pair_events > 40 * 2000);  // about one hit per ball and step
   for (int threads : {2, 2, 2, 3}) require_same(one, run(threads, pile(), 40));
+}
+
+// A step in which a particle would travel beyond the backend's limit (1e9 per step) is
+// refused before anything moves, naming the first such particle in index order (a NaN
+// velocity counts; a pinned particle's velocity does not); with ball contacts the sweep of
+// their first stage checks, in chunks on threads. The refused step changes nothing: with the
+// velocities put back, the run goes on to the same bits as a run that never had it.
+TEST_CASE("sdf threads: a step too fast is refused first, naming the first offender") {
+  for (const bool pairs : {true, false})
+    for (const int threads : {1, 2}) {
+      CAPTURE(pairs, threads);
+#ifdef PINSIM_WITH_TBB
+      const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                                      static_cast<std::size_t>(threads));
+#endif
+      const double dt = 1e-3;
+      const Vec2 g(0.0, -9.81);
+      Sim plain(table(pairs), crowd()), refused(table(pairs), crowd());
+      for (int s = 0; s < 30; ++s) {
+        plain.step(dt, g);
+        refused.step(dt, g);
+      }
+      const std::vector<double> x = refused.x, v = refused.v;
+      // ball 1160 is pinned (every 29th); 1100 and 1400 move (a travel of 2e9 > 1e9)
+      REQUIRE(refused.w[1160] == 0.0);
+      refused.v[2 * 1160] = std::nan("");
+      refused.v[2 * 1400 + 1] = -2e12;
+      refused.v[2 * 1100] = 2e12;
+      std::vector<double> gone = refused.v;
+      const pinsim::test::FpTrapsOff traps;  // (comparisons with the NaNs)
+      REQUIRE_THROWS_WITH(refused.step(dt, Vec2::Zero()),
+                          Catch::Contains("particle 1100 at t = ") &&
+                              Catch::Contains("travels beyond the sdf backend's limit"));
+      refused.v[2 * 1100] = std::nan("");
+      gone[2 * 1100] = std::nan("");
+      REQUIRE_THROWS_WITH(refused.step(dt, Vec2::Zero()), Catch::Contains("particle 1100 at t = "));
+      refused.v[2 * 1100] = v[2 * 1100];
+      gone[2 * 1100] = v[2 * 1100];
+      REQUIRE_THROWS_WITH(refused.step(dt, Vec2::Zero()), Catch::Contains("particle 1400 at t = "));
+      // nothing moved, no velocity changed, no event emitted
+      CHECK(same_bits(refused.x, x));
+      CHECK(std::memcmp(refused.v.data(), gone.data(), v.size() * sizeof(double)) == 0);
+      CHECK(refused.events.size() == plain.events.size());
+      refused.v = v;
+      for (int s = 0; s < 30; ++s) {
+        plain.step(dt, g);
+        refused.step(dt, g);
+      }
+      require_same(result(plain), result(refused));
+    }
 }
