@@ -481,17 +481,18 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
 }
 
 // A particle in no hit of the step gets no velocity change from the pair contacts, so its
-// march (march_or_reuse, as in the serial loop) does not wait for them: one side orders,
-// resolves and emits the hits (on one thread; from three, its waves on several) while the
-// others march those particles in fixed chunks. A particle in hits may be marched once its
-// last hit is resolved: while the serial resolution runs, the marching thread goes on with
-// the particles in hits of the chunks it is past (resolved_below()), keeping those in a hit
-// that does not touch at the start apart; it stops when the pair events are emitted or when
-// it has waited 50 us for the next chunk. Then every chunk's particles left, on threads. A
-// particle's march reads only its own changes, so it gives the same bits whenever and wherever it
-// runs after its last hit. Each chunk's events are kept in lists by particle; the pair events are
-// emitted first, then the chunks' lists merged by particle (a particle is in one): the order of the
-// serial loop, for any thread count.
+// march (march_or_reuse, as in the serial loop) does not wait for them: one side, on the
+// calling thread, orders and resolves the hits and emits their events as they fire (on one
+// thread; from three, its waves on several) while the others march those particles in fixed
+// chunks. A particle in hits may be marched once its last hit is resolved: while the serial
+// resolution runs, the marching thread goes on with the particles in hits of the chunks it
+// is past (resolved_below()), keeping those in a hit that does not touch at the start apart;
+// it stops when the resolution ends or when it has waited 50 us for the next chunk. Then
+// every chunk's particles left, on threads. A particle's march reads only its own changes,
+// so it gives the same bits whenever and wherever it runs after its last hit. Each chunk's
+// events are kept in lists by particle and emitted after the pair events, the chunks' lists
+// merged by particle (a particle is in one): the order of the serial loop, for any thread
+// count.
 void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, EventSink& ev) {
   rest_.resize(s.n);
   const std::size_t chunks = chunk_count(s.n, kChunk);
@@ -501,7 +502,6 @@ void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, Event
   kept_apart_.resize(chunks);
   late_mark_.assign(chunks, 0);
   marched_early_.assign(chunks, 0);
-  pair_events_.clear();
   auto march_into = [&](std::size_t c, std::size_t i, SdfStats& st) {
     const pinsim_event_sink to{&late_events_[c], &push_event};
     EventSink sink(&to);
@@ -535,12 +535,10 @@ void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, Event
           std::atomic<bool>& flag;
           ~Done() { flag.store(true, std::memory_order_release); }
         } done{resolved};
-        const pinsim_event_sink to{&pair_events_, &push_event};
-        EventSink sink(&to);
         if (available_threads() > 2)
-          isolated([&] { pairs_.resolve_found(s, dt, particle_e_, true, sink); });
+          isolated([&] { pairs_.resolve_found(s, dt, particle_e_, true, ev); });
         else
-          pairs_.resolve_found(s, dt, particle_e_, false, sink);
+          pairs_.resolve_found(s, dt, particle_e_, false, ev);
       },
       [&] {
         march_chunked(s.n, free_one, chunk_events_);
@@ -566,7 +564,6 @@ void SdfBackend::march_beside_pairs(MutableState& s, double t0, double dt, Event
         [](const pinsim_event& a, const pinsim_event& b) { return a.particle < b.particle; });
   });
   stats_.pair_contacts += pairs_.counts().impulses;
-  for (const pinsim_event& e : pair_events_) ev.emit(e);
   for (std::size_t c = 0; c < chunks; ++c) {
     add(stats_, chunk_stats_[c]);
     add(stats_, late_stats_[c]);

@@ -119,7 +119,6 @@ class SdfBackend : public FieldBackend {
   std::vector<std::size_t> late_mark_;  ///< per chunk: late_events_ before those kept apart
   std::vector<std::vector<uint32_t>> kept_apart_;  ///< per chunk: particles in later hits
   std::vector<char> marched_early_;  ///< per chunk: its particles in hits marched beside the hits
-  std::vector<pinsim_event> pair_events_;  ///< this step's pair contacts
 };
 
 }  // namespace pinsim::sdf

@@ -18,9 +18,9 @@
 #include <tbb/blocked_range.h>
 #include <tbb/global_control.h>
 #include <tbb/parallel_for.h>
-#include <tbb/parallel_invoke.h>
 #include <tbb/partitioner.h>
 #include <tbb/task_arena.h>
+#include <tbb/task_group.h>
 #endif
 
 namespace pinsim {
@@ -97,16 +97,28 @@ void for_chunks(std::size_t n, std::size_t chunk, Body&& body,
   for (std::size_t c = 0; c < chunks; ++c) run(c);
 }
 
-/// Runs first() and second() side by side when more than one thread is available (either on
-/// either thread; loops inside them share the threads), else first() then second(). For two
+/// Runs first() on the calling thread and second() beside it when more than one thread is
+/// available (loops inside them share the threads), else first() then second(). For two
 /// pieces of work that share nothing they write, or whose sharing the caller orders itself
-/// (atomics, with waits that never depend on the other piece having started). An exception from
-/// either reaches the caller after both end.
+/// (atomics, with waits that never depend on the other piece having started). So first() may
+/// call what must be called from the caller's thread (an event sink). An exception from
+/// either reaches the caller after both end (first()'s if both throw).
 template <class First, class Second>
 void run_both(First&& first, Second&& second) {
 #ifdef PINSIM_WITH_TBB
   if (available_threads() > 1) {
-    tbb::parallel_invoke(first, second);
+    tbb::task_group beside;
+    beside.run([&] { second(); });
+    try {
+      first();
+    } catch (...) {
+      try {
+        beside.wait();
+      } catch (...) {  // (first()'s exception is the one reported)
+      }
+      throw;
+    }
+    beside.wait();
     return;
   }
 #endif

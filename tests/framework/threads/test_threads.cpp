@@ -11,13 +11,17 @@
 // grouping set by the particle count, not by N. So every double is computed by the same
 // operations for any N.
 #include <Eigen/Core>
+#include <atomic>
 #include <catch2/catch.hpp>
+#include <chrono>
 #include <cmath>
 #include <fstream>
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <pinsim/parallel.hpp>
+#include <stdexcept>
 #include <string>
+#include <thread>
 #include <vector>
 #ifdef PINSIM_WITH_TBB
 #include <tbb/global_control.h>
@@ -201,6 +205,33 @@ TEST_CASE("threads: xpbd's pure dampers on the spring grid, 1, 2 and 3 threads a
 
 TEST_CASE("threads: the Box2D backend runs with threads (serially inside), same bits") {
   same_for_1_2_3(configs + "/pinball.json", "--backend box2d --set time.duration=1");
+}
+
+// run_both(first, second): first() on the calling thread (the sdf backend's resolving side
+// emits the pair events from it into the caller's sink), second() beside it; an exception
+// from either reaches the caller only after both have ended, first()'s if both throw.
+TEST_CASE("threads: run_both runs its first piece on the calling thread") {
+#ifdef PINSIM_WITH_TBB
+  const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 2);
+#endif
+  const std::thread::id caller = std::this_thread::get_id();
+  for (int k = 0; k < 50; ++k) {
+    std::thread::id first_on;
+    std::atomic<bool> second_ran{false};
+    pinsim::run_both([&] { first_on = std::this_thread::get_id(); }, [&] { second_ran = true; });
+    REQUIRE(first_on == caller);
+    REQUIRE(second_ran.load());
+  }
+  std::atomic<bool> second_ended{false};
+  auto slow = [&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    second_ended = true;
+  };
+  auto fail = [](const char* what) { return [what] { throw std::runtime_error(what); }; };
+  CHECK_THROWS_WITH(pinsim::run_both(fail("first"), slow), "first");
+  CHECK(second_ended.load());
+  CHECK_THROWS_WITH(pinsim::run_both([] {}, fail("second")), "second");
+  CHECK_THROWS_WITH(pinsim::run_both(fail("first"), fail("second")), "first");
 }
 
 TEST_CASE("threads: --threads outside 1..256 is refused with exit 2") {
