@@ -181,7 +181,9 @@ class PairContacts {
   std::size_t grid_nx_ = 0, grid_ny_ = 0;                ///< and cells (0: none)
   std::size_t dead_ = 0;        ///< list_ entries retired (a particle's own index)
   std::size_t steps_kept_ = 0;  ///< steps since the list was built
+  /// per chunk of the build's scan and part of the particles: its pairs
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> chunk_pairs_;
+  std::vector<uint32_t> part_start_;  ///< per part: its first entry in list_
   std::vector<uint32_t> cell_of_;     ///< per particle: its fat box's home cell (~0u: none)
   std::vector<uint32_t> cell_start_;  ///< per cell: first entry in sorted_
   std::vector<Sorted> sorted_;        ///< fat boxes by cell, in increasing index per cell

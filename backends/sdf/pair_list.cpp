@@ -19,6 +19,9 @@ constexpr std::size_t kParticles = 1024;
 constexpr std::size_t kEntries = 512;
 /// Listed pairs per chunk of the scan (any value gives the same hits in the same order).
 constexpr std::size_t kScanEntries = 2048;
+/// At most this many parts of the particles (by index) whose runs in the list are built
+/// apart, on threads (any value gives the same list).
+constexpr std::size_t kListParts = 16;
 constexpr uint32_t kNoCell = ~0u;
 /// A particle's enlarged box: its swept box, also swept kAhead steps further at its
 /// velocity, grown on every side by kSkin times the swept box's larger side. The larger they
@@ -315,14 +318,18 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
   }
   // Each entry against the later entries of its cell and the cell above, and the cells
   // (+1, -1), (+1, 0), (+1, +1): each pair of cells at most one apart is seen once. The boxes
-  // that overlap are gathered without branches.
+  // that overlap are gathered without branches. Each chunk's pairs go to the part of their
+  // lower index (particles [p 2^shift, (p + 1) 2^shift): part p).
+  unsigned shift = 0;
+  while ((n - 1) >> shift >= kListParts) ++shift;
+  const std::size_t parts = ((n - 1) >> shift) + 1;
   const std::size_t echunks = chunk_count(entries, kEntries);
-  chunk_pairs_.resize(echunks);
+  chunk_pairs_.resize(echunks * parts);
   chunk_near_.resize(echunks);
   auto scan = [&](std::size_t c, std::size_t b, std::size_t end) {
-    auto& out = chunk_pairs_[c];
+    auto* out = chunk_pairs_.data() + c * parts;
     std::vector<uint32_t>& near = chunk_near_[c];
-    out.clear();
+    for (std::size_t p = 0; p < parts; ++p) out[p].clear();
     const Sorted* box = sorted_.data();
     for (std::size_t a = b; a < end; ++a) {
       const Box A = box[a].box;
@@ -343,8 +350,8 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
       gather(b0, b1);
       const uint32_t ida = box[a].id;
       for (std::size_t m = 0; m < k; ++m) {
-        const uint32_t idq = box[pick[m]].id;
-        out.emplace_back(std::min(ida, idq), std::max(ida, idq));
+        const uint32_t idq = box[pick[m]].id, lo = std::min(ida, idq);
+        out[lo >> shift].emplace_back(lo, std::max(ida, idq));
       }
     }
   };
@@ -359,25 +366,40 @@ void PairContacts::build_list(const MutableState& s, double dt, bool threads) {
                 " pairs of particles within reach of each other, more than the pair contacts "
                 "can list (4294967295)");
   }
-  for (const auto& pairs : chunk_pairs_)
-    for (const auto& [i, j] : pairs) ++list_start_[i + 1];
-  for (std::size_t i = 0; i < n; ++i) list_start_[i + 1] += list_start_[i];
-  list_.resize(list_start_[n]);
-  fill_.assign(list_start_.begin(), list_start_.end() - 1);
-  for (const auto& pairs : chunk_pairs_)
-    for (const auto& p : pairs) list_[fill_[p.first]++] = p;
-  chunked(
-      threads, n, kParticles,
-      [&](std::size_t, std::size_t b, std::size_t end) {
-        for (std::size_t i = b; i < end; ++i) {  // a few partners each: insertion sort
-          auto* run = list_.data() + list_start_[i];
-          const std::size_t count = list_start_[i + 1] - list_start_[i];
-          for (std::size_t p = 1; p < count; ++p)
-            for (std::size_t q = p; q > 0 && run[q].second < run[q - 1].second; --q)
-              std::swap(run[q], run[q - 1]);
-        }
-      },
-      Schedule::Even);
+  // Each part's runs apart (a counting sort of its pairs by lower index from its place on,
+  // the parts' places from their sizes), then each run in order of the partner.
+  part_start_.assign(parts + 1, 0);
+  for (std::size_t p = 0; p < parts; ++p) {
+    std::size_t size = 0;
+    for (std::size_t c = 0; c < echunks; ++c) size += chunk_pairs_[c * parts + p].size();
+    part_start_[p + 1] = part_start_[p] + static_cast<uint32_t>(size);
+  }
+  list_.resize(found);
+  list_start_[n] = static_cast<uint32_t>(found);
+  fill_.resize(n);
+  chunked(threads, parts, 1, [&](std::size_t p, std::size_t, std::size_t) {
+    const std::size_t i0 = p << shift, i1 = std::min(n, (p + 1) << shift);
+    uint32_t* count = fill_.data();
+    std::fill(count + i0, count + i1, 0u);
+    for (std::size_t c = 0; c < echunks; ++c)
+      for (const auto& pair : chunk_pairs_[c * parts + p]) ++count[pair.first];
+    uint32_t at = part_start_[p];
+    for (std::size_t i = i0; i < i1; ++i) {
+      list_start_[i] = at;
+      at += count[i];
+      count[i] = list_start_[i];  // (now where its next pair goes)
+    }
+    for (std::size_t c = 0; c < echunks; ++c)
+      for (const auto& pair : chunk_pairs_[c * parts + p]) list_[count[pair.first]++] = pair;
+    for (std::size_t i = i0; i < i1; ++i) {  // a few partners each: insertion sort
+      auto* run = list_.data() + list_start_[i];
+      const std::size_t size =
+          (i + 1 < i1 ? list_start_[i + 1] : part_start_[p + 1]) - list_start_[i];
+      for (std::size_t q0 = 1; q0 < size; ++q0)
+        for (std::size_t q = q0; q > 0 && run[q].second < run[q - 1].second; --q)
+          std::swap(run[q], run[q - 1]);
+    }
+  });
 }
 
 // Each listed pair (i < j): candidates are the pairs whose closed swept boxes overlap (not
