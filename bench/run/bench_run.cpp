@@ -25,10 +25,11 @@
 // sdf_speedup = its wall time over the N-thread one (sdf_hash_same: 1 if both end in the same
 // positions, to the bit). For cases with ball-ball contacts, sdf_no_pairs_ns is the same
 // balls with contacts off (1 thread) and pairs_over_no_pairs = sdf_ns / sdf_no_pairs_ns at 1
-// thread. With --repeat K those loops run K times in turn (N threads, 1 thread, contacts off):
-// each figure is the median of its K, and the two ratios the medians of the K ratios of a
-// round (on a shared host the rounds see the same load, so the ratios vary less than the
-// figures).
+// thread. Those loops (N threads, 1 thread, contacts off) run on copies of the case stepped
+// in turn, 100 steps at a time (sdf_in_turn: on a shared host whose load changes over seconds
+// the copies see the same load). With --repeat K they run K times: each figure is the median
+// of its K, and the two ratios the medians of the K ratios of a round; each round's figures
+// go to stderr.
 // Usage: bench_run [--quick] [--threads N] [--repeat K] [--work DIR] [--pinsim PATH]
 //                  [--only TEXT] [--backend-only]
 //   --quick         small cases, a smoke test (ctest): checks it runs, no timing assertions
@@ -244,6 +245,60 @@ BackendFigures backend_ns(const Case& c, const json& params, const json& contact
       std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - w0).count();
   const double per = static_cast<double>(steps) * static_cast<double>(w.w.size());
   return {cpu / per, wall / per, w.hash()};
+}
+
+/// Steps of each copy per turn of sdf_in_turn.
+constexpr int kTurnSteps = 100;
+
+/// sdf_in_turn's figures: the N-thread copy, the 1-thread copy, the copy with contacts off.
+struct InTurn {
+  BackendFigures many, one, off;
+};
+
+// The sdf backend alone on copies of the case: `threads` threads, 1 thread, and (if the case
+// has ball contacts) 1 thread with them off, stepped in turn kTurnSteps steps at a time, each
+// copy's time summed over its turns. On a shared host whose load changes over seconds the
+// copies see the same load, so their ratios hold where the figures of loops run one after
+// another do not. (threads <= 1: one copy, as many and one.)
+InTurn sdf_in_turn(const Case& c, const json& params, int steps, double gx, double gy,
+                   int threads) {
+  struct Copy {
+    std::unique_ptr<BenchWorld<SdfBackend>> w;
+    int threads = 1;
+    double cpu = 0.0, wall = 0.0;
+  };
+  std::vector<Copy> copies;
+  auto add = [&](const json& contacts, int t) {
+    copies.push_back({std::make_unique<BenchWorld<SdfBackend>>(c.scene, params, c.x0, c.v0,
+                                                               c.radius, contacts, c.mass),
+                      t});
+  };
+  add(c.contacts, 1);
+  if (threads > 1) add(c.contacts, threads);
+  if (!c.contacts.is_null()) add({{"particles", false}}, 1);
+  const double dt = c.scene["time"]["dt"];
+  for (int done = 0; done < steps; done += kTurnSteps)
+    for (Copy& k : copies) {
+#ifdef PINSIM_WITH_TBB
+      const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                                      static_cast<std::size_t>(k.threads));
+#endif
+      const auto w0 = std::chrono::steady_clock::now();
+      const double t0 = process_cpu_ns();
+      for (int s = done; s < std::min(steps, done + kTurnSteps); ++s) k.w->step(dt, gx, gy);
+      k.cpu += process_cpu_ns() - t0;
+      k.wall +=
+          std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - w0).count();
+    }
+  auto figures = [&](const Copy& k) -> BackendFigures {
+    const double per = static_cast<double>(steps) * static_cast<double>(k.w->w.size());
+    return {k.cpu / per, k.wall / per, k.w->hash()};
+  };
+  InTurn out;
+  out.one = figures(copies[0]);
+  out.many = threads > 1 ? figures(copies[1]) : out.one;
+  if (!c.contacts.is_null()) out.off = figures(copies.back());
+  return out;
 }
 
 json particles_json(const std::vector<double>& x0, const std::vector<double>& v0, double radius,
@@ -507,19 +562,22 @@ int main(int argc, char** argv) {
       Rounds n, one, off;
       std::vector<double> speedups, overs;
       for (int r = 0; r < o.repeat; ++r) {
-        const BackendFigures a = backend_ns<SdfBackend>(c, sp, c.contacts, steps, gx, gy, threads);
-        const BackendFigures b =
-            threads > 1 ? backend_ns<SdfBackend>(c, sp, c.contacts, steps, gx, gy, 1) : a;
+        const InTurn f = sdf_in_turn(c, sp, steps, gx, gy, threads);
+        const BackendFigures &a = f.many, &b = f.one;
         n.add(a);
         one.add(b);
         speedups.push_back(b.wall_ns / a.wall_ns);
         same_hash = same_hash && a.hash == n.first_hash && b.hash == n.first_hash;
         if (!c.contacts.is_null()) {
-          const BackendFigures z =
-              backend_ns<SdfBackend>(c, sp, {{"particles", false}}, steps, gx, gy, 1);
-          off.add(z);
-          overs.push_back(b.cpu_ns / z.cpu_ns);
+          off.add(f.off);
+          overs.push_back(b.cpu_ns / f.off.cpu_ns);
         }
+        if (o.repeat > 1)
+          std::fprintf(stderr,
+                       "bench_run: %s round %d: %d threads %.2f ns, 1 thread %.2f ns (%.2fx), "
+                       "contacts off %.2f ns\n",
+                       c.name.c_str(), r + 1, threads, a.wall_ns, b.wall_ns, b.wall_ns / a.wall_ns,
+                       f.off.cpu_ns);
       }
       sdf = n.medians();
       sdf1 = one.medians();
