@@ -27,7 +27,10 @@
 // balls with contacts off (1 thread) and pairs_over_no_pairs = sdf_ns / sdf_no_pairs_ns at 1
 // thread. Those loops (N threads, 1 thread, contacts off) run on copies of the case stepped
 // in turn, 100 steps at a time (sdf_in_turn: on a shared host whose load changes over seconds
-// the copies see the same load). With --repeat K they run K times: each figure is the median
+// the copies see the same load); with N > 1 a last turn runs N 1-thread copies at once, one
+// per thread, and sdf_ceiling = N x the 1-thread wall time over theirs: what the machine
+// itself gives this work on N threads, the ceiling of sdf_speedup (their positions must
+// equal the 1-thread copy's too). With --repeat K they run K times: each figure is the median
 // of its K, and the two ratios the medians of the K ratios of a round; each round's figures
 // go to stderr.
 // Usage: bench_run [--quick] [--threads N] [--repeat K] [--work DIR] [--pinsim PATH]
@@ -50,11 +53,13 @@
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <random>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #ifdef PINSIM_WITH_TBB
@@ -250,16 +255,24 @@ BackendFigures backend_ns(const Case& c, const json& params, const json& contact
 /// Steps of each copy per turn of sdf_in_turn.
 constexpr int kTurnSteps = 100;
 
-/// sdf_in_turn's figures: the N-thread copy, the 1-thread copy, the copy with contacts off.
+/// sdf_in_turn's figures: the N-thread copy, the 1-thread copy, the copy with contacts off;
+/// the machine's ceiling (N 1-thread copies at once: N x one's wall time over theirs) and
+/// whether those copies ended in one's positions.
 struct InTurn {
   BackendFigures many, one, off;
+  double ceiling = NAN;
+  bool side_same = true;
 };
 
 // The sdf backend alone on copies of the case: `threads` threads, 1 thread, and (if the case
 // has ball contacts) 1 thread with them off, stepped in turn kTurnSteps steps at a time, each
 // copy's time summed over its turns. On a shared host whose load changes over seconds the
 // copies see the same load, so their ratios hold where the figures of loops run one after
-// another do not. (threads <= 1: one copy, as many and one.)
+// another do not. (threads <= 1: one copy, as many and one.) With threads > 1 a last turn
+// runs `threads` more 1-thread copies at once, one per thread (sharing nothing): the
+// speedup the machine itself gives this work on that many threads, the ceiling of any
+// splitting of it (on a shared host two cores may not run two threads at twice the speed of
+// one).
 InTurn sdf_in_turn(const Case& c, const json& params, int steps, double gx, double gy,
                    int threads) {
   struct Copy {
@@ -276,8 +289,14 @@ InTurn sdf_in_turn(const Case& c, const json& params, int steps, double gx, doub
   add(c.contacts, 1);
   if (threads > 1) add(c.contacts, threads);
   if (!c.contacts.is_null()) add({{"particles", false}}, 1);
+  std::vector<std::unique_ptr<BenchWorld<SdfBackend>>> side;
+  for (int k = 0; threads > 1 && k < threads; ++k)
+    side.push_back(std::make_unique<BenchWorld<SdfBackend>>(c.scene, params, c.x0, c.v0, c.radius,
+                                                            c.contacts, c.mass));
+  double side_wall = 0.0;
   const double dt = c.scene["time"]["dt"];
-  for (int done = 0; done < steps; done += kTurnSteps)
+  for (int done = 0; done < steps; done += kTurnSteps) {
+    const int end = std::min(steps, done + kTurnSteps);
     for (Copy& k : copies) {
 #ifdef PINSIM_WITH_TBB
       const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
@@ -285,11 +304,32 @@ InTurn sdf_in_turn(const Case& c, const json& params, int steps, double gx, doub
 #endif
       const auto w0 = std::chrono::steady_clock::now();
       const double t0 = process_cpu_ns();
-      for (int s = done; s < std::min(steps, done + kTurnSteps); ++s) k.w->step(dt, gx, gy);
+      for (int s = done; s < end; ++s) k.w->step(dt, gx, gy);
       k.cpu += process_cpu_ns() - t0;
       k.wall +=
           std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - w0).count();
     }
+    if (side.empty()) continue;
+#ifdef PINSIM_WITH_TBB
+    const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
+#endif
+    std::vector<std::exception_ptr> failed(side.size());
+    std::vector<std::thread> running;
+    const auto w0 = std::chrono::steady_clock::now();
+    for (std::size_t k = 0; k < side.size(); ++k)
+      running.emplace_back([&, k] {
+        try {
+          for (int s = done; s < end; ++s) side[k]->step(dt, gx, gy);
+        } catch (...) {
+          failed[k] = std::current_exception();
+        }
+      });
+    for (std::thread& t : running) t.join();
+    side_wall +=
+        std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - w0).count();
+    for (const std::exception_ptr& e : failed)
+      if (e) std::rethrow_exception(e);
+  }
   auto figures = [&](const Copy& k) -> BackendFigures {
     const double per = static_cast<double>(steps) * static_cast<double>(k.w->w.size());
     return {k.cpu / per, k.wall / per, k.w->hash()};
@@ -298,6 +338,10 @@ InTurn sdf_in_turn(const Case& c, const json& params, int steps, double gx, doub
   out.one = figures(copies[0]);
   out.many = threads > 1 ? figures(copies[1]) : out.one;
   if (!c.contacts.is_null()) out.off = figures(copies.back());
+  if (!side.empty()) {
+    out.ceiling = static_cast<double>(side.size()) * copies[0].wall / side_wall;
+    for (const auto& w : side) out.side_same = out.side_same && w->hash() == out.one.hash;
+  }
   return out;
 }
 
@@ -543,7 +587,7 @@ int main(int argc, char** argv) {
       "case,particles,steps,sdf_ns,box2d_ns,box2d_steps,run_min_output_ns,run_ns,run_over_sdf,"
       "run_over_min_output,run_wall_ns,max_rss_mb,events_rows,contacts_rows,run_wall_s,contacts,"
       "events_mb,contacts_mb,threads,sdf_wall_ns,sdf_1t_wall_ns,sdf_speedup,sdf_hash_same,"
-      "sdf_no_pairs_ns,pairs_over_no_pairs\n");
+      "sdf_no_pairs_ns,pairs_over_no_pairs,sdf_ceiling\n");
   int failures = 0;
   for (const Case& c : cases) {
     {
@@ -553,35 +597,37 @@ int main(int argc, char** argv) {
     const double dt = c.scene["time"]["dt"];
     const int steps = static_cast<int>(std::lround(c.scene["time"]["duration"].get<double>() / dt));
     BackendFigures sdf, sdf1, no_pairs;
-    double speedup = NAN, over_no_pairs = NAN;
+    double speedup = NAN, over_no_pairs = NAN, ceiling = NAN;
     bool same_hash = true;
     double box2d = NAN;
     if (c.balls) {
       const json sp = params_for<SdfBackend>(c.scene["backend"]["params"]);
       // o.repeat rounds in turn; the medians (Rounds)
       Rounds n, one, off;
-      std::vector<double> speedups, overs;
+      std::vector<double> speedups, overs, ceilings;
       for (int r = 0; r < o.repeat; ++r) {
         const InTurn f = sdf_in_turn(c, sp, steps, gx, gy, threads);
         const BackendFigures &a = f.many, &b = f.one;
         n.add(a);
         one.add(b);
         speedups.push_back(b.wall_ns / a.wall_ns);
-        same_hash = same_hash && a.hash == n.first_hash && b.hash == n.first_hash;
+        same_hash = same_hash && a.hash == n.first_hash && b.hash == n.first_hash && f.side_same;
+        ceilings.push_back(f.ceiling);
         if (!c.contacts.is_null()) {
           off.add(f.off);
           overs.push_back(b.cpu_ns / f.off.cpu_ns);
         }
         if (o.repeat > 1)
           std::fprintf(stderr,
-                       "bench_run: %s round %d: %d threads %.2f ns, 1 thread %.2f ns (%.2fx), "
-                       "contacts off %.2f ns\n",
+                       "bench_run: %s round %d: %d threads %.2f ns, 1 thread %.2f ns (%.2fx; "
+                       "the machine's ceiling %.2fx), contacts off %.2f ns\n",
                        c.name.c_str(), r + 1, threads, a.wall_ns, b.wall_ns, b.wall_ns / a.wall_ns,
-                       f.off.cpu_ns);
+                       f.ceiling, f.off.cpu_ns);
       }
       sdf = n.medians();
       sdf1 = one.medians();
       speedup = median(speedups);
+      if (threads > 1) ceiling = median(ceilings);
       if (!overs.empty()) {
         no_pairs = off.medians();
         over_no_pairs = median(overs);
@@ -607,13 +653,14 @@ int main(int argc, char** argv) {
     const double run_ns = out.cpu_s * per, bare_ns = bare.cpu_s * per, wall_ns = out.loop_s * per;
     std::printf(
         "%s,%.0f,%d,%.2f,%.2f,%d,%.2f,%.2f,%.2f,%.2f,%.2f,%.1f,%llu,%llu,%.2f,%llu,%.1f,%.1f,%d,"
-        "%.2f,%.2f,%.2f,%d,%.2f,%.2f\n",
+        "%.2f,%.2f,%.2f,%d,%.2f,%.2f,%.2f\n",
         c.name.c_str(), particles, steps, sdf.cpu_ns, box2d, c.balls ? c.box2d_steps : 0, bare_ns,
         run_ns, run_ns / sdf.cpu_ns, run_ns / bare_ns, wall_ns, out.max_rss_mb,
         static_cast<unsigned long long>(out.events_rows),
         static_cast<unsigned long long>(out.contacts_rows), out.loop_s,
         static_cast<unsigned long long>(out.contacts), out.events_mb, out.contacts_mb, threads,
-        sdf.wall_ns, sdf1.wall_ns, speedup, same_hash ? 1 : 0, no_pairs.cpu_ns, over_no_pairs);
+        sdf.wall_ns, sdf1.wall_ns, speedup, same_hash ? 1 : 0, no_pairs.cpu_ns, over_no_pairs,
+        ceiling);
     std::fflush(stdout);
     // Sane figures: every measured one finite and positive (no timing limits); the same
     // positions for any thread count.
