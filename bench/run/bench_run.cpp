@@ -271,8 +271,8 @@ struct InTurn {
 // another do not. (threads <= 1: one copy, as many and one.) With threads > 1 a last turn
 // runs `threads` more 1-thread copies at once, one per thread (sharing nothing): the
 // speedup the machine itself gives this work on that many threads, the ceiling of any
-// splitting of it (on a shared host two cores may not run two threads at twice the speed of
-// one).
+// splitting of it but where a thread's smaller share of the data helps the caches (on a
+// shared host two cores may not run two threads at twice the speed of one).
 InTurn sdf_in_turn(const Case& c, const json& params, int steps, double gx, double gy,
                    int threads) {
   struct Copy {
