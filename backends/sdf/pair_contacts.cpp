@@ -210,6 +210,8 @@ void PairContacts::resolve(const MutableState& s, double dt, double e, bool thre
     }
   } else {
     if (!resolve_islands(s, dt, e)) resolve_waves(s.n, dt, e);
+    // (every change final: the marching side need not wait for the events)
+    resolved_below_.store(kAllResolved, std::memory_order_release);
     for (std::size_t h = 0; h < hits; ++h)
       if (outcome_[h].fired) {
         ++counts_.impulses;

@@ -52,7 +52,8 @@ class PairContacts {
   /// (from the calling thread; on one thread each as its hit fires).
   /// find() first checks every particle with finite mass: the first (in index order) whose
   /// velocity travels beyond `max_travel` along an axis in dt (or is NaN) is returned and
-  /// nothing else is done; else s.n (always with max_travel = HUGE_VAL: no check).
+  /// no hit is found (counts() reads 0); else s.n (always with max_travel = HUGE_VAL: no
+  /// check).
   std::size_t find(const MutableState& s, double dt, bool threads, DriftRecorder* tape = nullptr,
                    double max_travel = HUGE_VAL);
   void resolve_found(const MutableState& s, double dt, double e, bool threads, EventSink& ev);

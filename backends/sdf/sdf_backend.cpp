@@ -482,12 +482,12 @@ void SdfBackend::advance(MutableState& s, double dt, EventSink& ev) {
 
 // A particle in no hit of the step gets no velocity change from the pair contacts, so its
 // march (march_or_reuse, as in the serial loop) does not wait for them: one side, on the
-// calling thread, orders and resolves the hits and emits their events as they fire (on one
-// thread; from three, its waves on several) while the others march those particles in fixed
-// chunks. A particle in hits may be marched once its last hit is resolved: while the serial
-// resolution runs, the marching thread goes on with the particles in hits of the chunks it
-// is past (resolved_below()), keeping those in a hit that does not touch at the start apart;
-// it stops when the resolution ends or when it has waited 50 us for the next chunk. Then
+// calling thread, orders and resolves the hits and emits their events (on one thread, each as
+// its hit fires; from three, its waves on several, the events after) while the others march
+// those particles in fixed chunks. A particle in hits may be marched once its last hit is resolved:
+// while the serial resolution runs, the marching thread goes on with the particles in hits of the
+// chunks it is past (resolved_below()), keeping those in a hit that does not touch at the start
+// apart; it stops when the resolution ends or when it has waited 50 us for the next chunk. Then
 // every chunk's particles left, on threads. A particle's march reads only its own changes,
 // so it gives the same bits whenever and wherever it runs after its last hit. Each chunk's
 // events are kept in lists by particle and emitted after the pair events, the chunks' lists

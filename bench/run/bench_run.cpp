@@ -27,8 +27,8 @@
 // balls with contacts off (1 thread) and pairs_over_no_pairs = sdf_ns / sdf_no_pairs_ns at 1
 // thread. Those loops (N threads, 1 thread, contacts off) run on copies of the case stepped
 // in turn, 100 steps at a time (sdf_in_turn: on a shared host whose load changes over seconds
-// the copies see the same load); with N > 1 a last turn runs N 1-thread copies at once, one
-// per thread, and sdf_ceiling = N x the 1-thread wall time over theirs: what the machine
+// the copies see the same load); with N > 1 each turn ends with N 1-thread copies at once,
+// one per thread, and sdf_ceiling = N x the 1-thread wall time over theirs: what the machine
 // itself gives this work on N threads, the ceiling of sdf_speedup (their positions must
 // equal the 1-thread copy's too). With --repeat K they run K times: each figure is the median
 // of its K, and the two ratios the medians of the K ratios of a round; each round's figures
@@ -268,8 +268,8 @@ struct InTurn {
 // has ball contacts) 1 thread with them off, stepped in turn kTurnSteps steps at a time, each
 // copy's time summed over its turns. On a shared host whose load changes over seconds the
 // copies see the same load, so their ratios hold where the figures of loops run one after
-// another do not. (threads <= 1: one copy, as many and one.) With threads > 1 a last turn
-// runs `threads` more 1-thread copies at once, one per thread (sharing nothing): the
+// another do not. (threads <= 1: one copy, as many and one.) With threads > 1 each turn
+// ends with `threads` more 1-thread copies at once, one per thread (sharing nothing): the
 // speedup the machine itself gives this work on that many threads, the ceiling of any
 // splitting of it but where a thread's smaller share of the data helps the caches (on a
 // shared host two cores may not run two threads at twice the speed of one).
@@ -314,7 +314,7 @@ InTurn sdf_in_turn(const Case& c, const json& params, int steps, double gx, doub
     const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
 #endif
     std::vector<std::exception_ptr> failed(side.size());
-    std::vector<std::thread> running;
+    std::vector<std::jthread> running;  // (joined also if a later one fails to start)
     const auto w0 = std::chrono::steady_clock::now();
     for (std::size_t k = 0; k < side.size(); ++k)
       running.emplace_back([&, k] {
@@ -324,7 +324,7 @@ InTurn sdf_in_turn(const Case& c, const json& params, int steps, double gx, doub
           failed[k] = std::current_exception();
         }
       });
-    for (std::thread& t : running) t.join();
+    for (std::jthread& t : running) t.join();
     side_wall +=
         std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - w0).count();
     for (const std::exception_ptr& e : failed)

@@ -178,6 +178,10 @@ typedef struct pinsim_event {
   double vn_after;  /**< relative normal velocity after the impulse */
 } pinsim_event;
 
+/** Where a backend's advance() puts its events, in order, each copied by emit before it
+ *  returns. A backend calls emit only from the thread that called advance(), but it may do so
+ *  while its other threads are still writing the state: a sink records the event and reads
+ *  nothing of the state. */
 typedef struct pinsim_event_sink {
   void* context;
   void (*emit)(void* context, const pinsim_event* event);

@@ -101,17 +101,22 @@ void for_chunks(std::size_t n, std::size_t chunk, Body&& body,
 /// available (loops inside them share the threads), else first() then second(). For two
 /// pieces of work that share nothing they write, or whose sharing the caller orders itself
 /// (atomics, with waits that never depend on the other piece having started). So first() may
-/// call what must be called from the caller's thread (an event sink). An exception from
-/// either reaches the caller after both end (first()'s if both throw).
+/// call what must be called from the caller's thread (an event sink). With threads an
+/// exception from either reaches the caller after both end (first()'s if both throw; a throw
+/// from first() cancels what of second() has not started); without, second() does not run
+/// after first() throws. second() runs in a context of its own: the cancellation of an
+/// enclosing parallel loop never skips it silently.
 template <class First, class Second>
 void run_both(First&& first, Second&& second) {
 #ifdef PINSIM_WITH_TBB
   if (available_threads() > 1) {
-    tbb::task_group beside;
+    tbb::task_group_context own(tbb::task_group_context::isolated);
+    tbb::task_group beside(own);
     beside.run([&] { second(); });
     try {
       first();
     } catch (...) {
+      beside.cancel();
       try {
         beside.wait();
       } catch (...) {  // (first()'s exception is the one reported)

@@ -58,11 +58,11 @@ Run run(int threads, const std::vector<Ball>& balls, int steps) {
   return result(sim);
 }
 
-/// 1500 balls of 1 cm, 2.1 cm apart, moving down and sideways at different speeds (every
-/// 29th pinned), to fall onto the floor and the bumper.
-std::vector<Ball> crowd() {
+/// 1500 (or `count`) balls of 1 cm, 2.1 cm apart, in rows of 50, moving down and sideways at
+/// different speeds (every 29th pinned), to fall onto the floor and the bumper.
+std::vector<Ball> crowd(int count = 1500) {
   std::vector<Ball> balls;
-  for (int k = 0; k < 1500; ++k) {
+  for (int k = 0; k < count; ++k) {
     Ball b;
     b.x = Vec2(-0.5 + 0.021 * (k % 50), 0.05 + 0.021 * (k / 50));
     b.v = Vec2(0.3 * ((k * 7) % 11 - 5), -0.5 - 0.1 * ((k * 3) % 7));
@@ -170,5 +170,32 @@ TEST_CASE("sdf threads: a step too fast is refused first, naming the first offen
         refused.step(dt, g);
       }
       require_same(result(plain), result(refused));
+    }
+}
+
+// The same check on threads: from 4096 particles the sweep (with ball contacts) and the check
+// without them run in chunks of 1024 on the threads, each chunk noting its first offender; the
+// first chunk's is named, whichever thread ran it. Offenders in chunks 1 and 4 (finite
+// velocities: the threads' floating-point traps stay on).
+TEST_CASE("sdf threads: on threads the first offender is named across the chunks") {
+  for (const bool pairs : {true, false})
+    for (const int threads : {1, 2}) {
+      CAPTURE(pairs, threads);
+#ifdef PINSIM_WITH_TBB
+      const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                                      static_cast<std::size_t>(threads));
+#endif
+      Sim sim(table(pairs), crowd(6000));
+      for (int s = 0; s < 5; ++s) sim.step(1e-3, Vec2(0.0, -9.81));
+      REQUIRE(sim.w[4500] > 0.0);
+      REQUIRE(sim.w[2000] > 0.0);
+      const std::vector<double> x = sim.x;
+      sim.v[2 * 4500] = 3e12;
+      sim.v[2 * 2000 + 1] = -3e12;
+      const std::vector<double> v = sim.v;
+      REQUIRE_THROWS_WITH(sim.step(1e-3, Vec2::Zero()), Catch::Contains("particle 2000 at t = "));
+      sim.v[2 * 2000 + 1] = 0.0;
+      REQUIRE_THROWS_WITH(sim.step(1e-3, Vec2::Zero()), Catch::Contains("particle 4500 at t = "));
+      CHECK(same_bits(sim.x, x));
     }
 }

@@ -171,7 +171,7 @@ inline void ref_drift(const std::vector<RefObstacle>& obs, double offset, double
   }
 }
 
-/// Discs on linear tracks, the sdf backend's pair schedule (schedule_pairs in
+/// Discs on linear tracks, the sdf backend's pair schedule (resolve_pairs in
 /// backends/sdf/sdf_backend.cpp) for a few discs: every pair's time of impact from the start,
 /// handled in time order with the velocities changed by the earlier hits.
 struct RefDiscs {
