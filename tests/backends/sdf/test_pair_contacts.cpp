@@ -222,11 +222,13 @@ TEST_CASE("pair contacts: a particle's changes are final once the resolution is 
   // Here a second thread resolves crowded steps (most hits touch at the start) while this
   // one copies each particle's changes as soon as that says they are final: every copy must
   // equal the changes at the end, to the bit.
-  // (six crowds, and more until a copy was made before the end: on a loaded machine this
-  // thread may not run while the other resolves a whole step)
+  // (six crowds of 3000, then, until a copy was made before the end, crowds of 60,000 at the
+  // same density: on a loaded machine this thread may not run while the other resolves a
+  // step of 3000, well under a time slice; one of 60,000 takes a few ms)
   std::size_t early = 0, copied = 0, late = 0;
-  for (unsigned seed = 31; seed < 37 || (early == 0 && seed < 131); ++seed) {
-    Balls b = crowd(3000, 0.3, seed);
+  for (unsigned round = 0; round < 6 || (early == 0 && round < 30); ++round) {
+    const std::size_t balls = round < 6 ? 3000 : 60000;
+    Balls b = crowd(balls, 0.3 * std::sqrt(static_cast<double>(balls) / 3000.0), 31 + round);
     const MutableState ms = b.state(0.0);
     const double dt = 2e-4;  // 0.2 mm of travel at most: few hits but those touching
     PairContacts pc;
