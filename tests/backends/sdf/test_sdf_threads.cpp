@@ -104,6 +104,20 @@ void require_same(const Run& one, const Run& many) {
   CHECK(std::memcmp(&one.stats, &many.stats, sizeof(SdfStats)) == 0);
 }
 
+/// body(pairs) with ball contacts and without, each on 1 and 2 threads.
+template <class Body>
+void each_setting(Body&& body) {
+  for (const bool pairs : {true, false})
+    for (const int threads : {1, 2}) {
+      CAPTURE(pairs, threads);
+#ifdef PINSIM_WITH_TBB
+      const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
+                                      static_cast<std::size_t>(threads));
+#endif
+      body(pairs);
+    }
+}
+
 }  // namespace
 
 TEST_CASE("sdf threads: a crowd with ball contacts gives the same bits on 1, 2 and 3 threads") {
@@ -126,51 +140,46 @@ TEST_CASE("sdf threads: a resting pile gives the same bits on 1, 2 and 3 threads
 // A step in which a particle would travel beyond the backend's limit (1e9 per step) is
 // refused before anything moves, naming the first such particle in index order (a NaN
 // velocity counts; a pinned particle's velocity does not); with ball contacts the sweep of
-// their first stage checks, in chunks on threads. The refused step changes nothing: with the
-// velocities put back, the run goes on to the same bits as a run that never had it.
+// their first stage checks (1500 balls: one thread; on threads in chunks, the next test).
+// The refused step changes nothing: with the velocities put back, the run goes on to the
+// same bits as a run that never had it.
 TEST_CASE("sdf threads: a step too fast is refused first, naming the first offender") {
-  for (const bool pairs : {true, false})
-    for (const int threads : {1, 2}) {
-      CAPTURE(pairs, threads);
-#ifdef PINSIM_WITH_TBB
-      const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
-                                      static_cast<std::size_t>(threads));
-#endif
-      const double dt = 1e-3;
-      const Vec2 g(0.0, -9.81);
-      Sim plain(table(pairs), crowd()), refused(table(pairs), crowd());
-      for (int s = 0; s < 30; ++s) {
-        plain.step(dt, g);
-        refused.step(dt, g);
-      }
-      const std::vector<double> x = refused.x, v = refused.v;
-      // ball 1160 is pinned (every 29th); 1100 and 1400 move (a travel of 2e9 > 1e9)
-      REQUIRE(refused.w[1160] == 0.0);
-      refused.v[2 * 1160] = std::nan("");
-      refused.v[2 * 1400 + 1] = -2e12;
-      refused.v[2 * 1100] = 2e12;
-      std::vector<double> gone = refused.v;
-      const pinsim::test::FpTrapsOff traps;  // (comparisons with the NaNs)
-      REQUIRE_THROWS_WITH(refused.step(dt, Vec2::Zero()),
-                          Catch::Contains("particle 1100 at t = ") &&
-                              Catch::Contains("travels beyond the sdf backend's limit"));
-      refused.v[2 * 1100] = std::nan("");
-      gone[2 * 1100] = std::nan("");
-      REQUIRE_THROWS_WITH(refused.step(dt, Vec2::Zero()), Catch::Contains("particle 1100 at t = "));
-      refused.v[2 * 1100] = v[2 * 1100];
-      gone[2 * 1100] = v[2 * 1100];
-      REQUIRE_THROWS_WITH(refused.step(dt, Vec2::Zero()), Catch::Contains("particle 1400 at t = "));
-      // nothing moved, no velocity changed, no event emitted
-      CHECK(same_bits(refused.x, x));
-      CHECK(std::memcmp(refused.v.data(), gone.data(), v.size() * sizeof(double)) == 0);
-      CHECK(refused.events.size() == plain.events.size());
-      refused.v = v;
-      for (int s = 0; s < 30; ++s) {
-        plain.step(dt, g);
-        refused.step(dt, g);
-      }
-      require_same(result(plain), result(refused));
+  each_setting([](bool pairs) {
+    const double dt = 1e-3;
+    const Vec2 g(0.0, -9.81);
+    Sim plain(table(pairs), crowd()), refused(table(pairs), crowd());
+    for (int s = 0; s < 30; ++s) {
+      plain.step(dt, g);
+      refused.step(dt, g);
     }
+    const std::vector<double> x = refused.x, v = refused.v;
+    // ball 1160 is pinned (every 29th); 1100 and 1400 move (a travel of 2e9 > 1e9)
+    REQUIRE(refused.w[1160] == 0.0);
+    refused.v[2 * 1160] = std::nan("");
+    refused.v[2 * 1400 + 1] = -2e12;
+    refused.v[2 * 1100] = 2e12;
+    std::vector<double> gone = refused.v;
+    const pinsim::test::FpTrapsOff traps;  // (comparisons with the NaNs)
+    REQUIRE_THROWS_WITH(refused.step(dt, Vec2::Zero()),
+                        Catch::Contains("particle 1100 at t = ") &&
+                            Catch::Contains("travels beyond the sdf backend's limit"));
+    refused.v[2 * 1100] = std::nan("");
+    gone[2 * 1100] = std::nan("");
+    REQUIRE_THROWS_WITH(refused.step(dt, Vec2::Zero()), Catch::Contains("particle 1100 at t = "));
+    refused.v[2 * 1100] = v[2 * 1100];
+    gone[2 * 1100] = v[2 * 1100];
+    REQUIRE_THROWS_WITH(refused.step(dt, Vec2::Zero()), Catch::Contains("particle 1400 at t = "));
+    // nothing moved, no velocity changed, no event emitted
+    CHECK(same_bits(refused.x, x));
+    CHECK(std::memcmp(refused.v.data(), gone.data(), v.size() * sizeof(double)) == 0);
+    CHECK(refused.events.size() == plain.events.size());
+    refused.v = v;
+    for (int s = 0; s < 30; ++s) {
+      plain.step(dt, g);
+      refused.step(dt, g);
+    }
+    require_same(result(plain), result(refused));
+  });
 }
 
 // The same check on threads: from 4096 particles the sweep (with ball contacts) and the check
@@ -178,24 +187,18 @@ TEST_CASE("sdf threads: a step too fast is refused first, naming the first offen
 // first chunk's is named, whichever thread ran it. Offenders in chunks 1 and 4 (finite
 // velocities: the threads' floating-point traps stay on).
 TEST_CASE("sdf threads: on threads the first offender is named across the chunks") {
-  for (const bool pairs : {true, false})
-    for (const int threads : {1, 2}) {
-      CAPTURE(pairs, threads);
-#ifdef PINSIM_WITH_TBB
-      const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
-                                      static_cast<std::size_t>(threads));
-#endif
-      Sim sim(table(pairs), crowd(6000));
-      for (int s = 0; s < 5; ++s) sim.step(1e-3, Vec2(0.0, -9.81));
-      REQUIRE(sim.w[4500] > 0.0);
-      REQUIRE(sim.w[2000] > 0.0);
-      const std::vector<double> x = sim.x;
-      sim.v[2 * 4500] = 3e12;
-      sim.v[2 * 2000 + 1] = -3e12;
-      const std::vector<double> v = sim.v;
-      REQUIRE_THROWS_WITH(sim.step(1e-3, Vec2::Zero()), Catch::Contains("particle 2000 at t = "));
-      sim.v[2 * 2000 + 1] = 0.0;
-      REQUIRE_THROWS_WITH(sim.step(1e-3, Vec2::Zero()), Catch::Contains("particle 4500 at t = "));
-      CHECK(same_bits(sim.x, x));
-    }
+  each_setting([](bool pairs) {
+    Sim sim(table(pairs), crowd(6000));
+    for (int s = 0; s < 5; ++s) sim.step(1e-3, Vec2(0.0, -9.81));
+    REQUIRE(sim.w[4500] > 0.0);
+    REQUIRE(sim.w[2000] > 0.0);
+    const std::vector<double> x = sim.x;
+    sim.v[2 * 4500] = 3e12;
+    sim.v[2 * 2000 + 1] = -3e12;
+    const std::vector<double> v = sim.v;
+    REQUIRE_THROWS_WITH(sim.step(1e-3, Vec2::Zero()), Catch::Contains("particle 2000 at t = "));
+    sim.v[2 * 2000 + 1] = 0.0;
+    REQUIRE_THROWS_WITH(sim.step(1e-3, Vec2::Zero()), Catch::Contains("particle 4500 at t = "));
+    CHECK(same_bits(sim.x, x));
+  });
 }
