@@ -208,6 +208,7 @@ void PairContacts::resolve(const MutableState& s, double dt, double e, bool thre
         emit_event(h, ev);
       }
     }
+    resolved_below_.store(kAllResolved, std::memory_order_release);
   } else {
     if (!resolve_islands(s, dt, e)) resolve_waves(s.n, dt, e);
     // (every change final: the marching side need not wait for the events)
@@ -218,7 +219,6 @@ void PairContacts::resolve(const MutableState& s, double dt, double e, bool thre
         emit_event(h, ev);
       }
   }
-  resolved_below_.store(kAllResolved, std::memory_order_release);
 }
 
 // The hits in waves (assign_waves): those of a wave share no particle and run at once, on

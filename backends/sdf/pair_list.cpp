@@ -6,6 +6,7 @@
 #include <cmath>
 #include <limits>
 #include <pinsim/parallel.hpp>
+#include <pinsim/scene_field/limits.hpp>
 #include <string>
 
 #include "pair_contacts.hpp"
@@ -111,9 +112,7 @@ bool PairContacts::sweep(const MutableState& s, double dt, bool threads, double 
       const Start p{s.x(0, i),   s.x(1, i),    moves ? s.v(0, i) : 0.0, moves ? s.v(1, i) : 0.0,
                     s.radius[i], s.inv_mass[i]};
       start_[i] = p;
-      if (check && moves && fast == n &&
-          !(std::abs(p.vx) * dt <= max_travel && std::abs(p.vy) * dt <= max_travel))
-        fast = i;
+      if (check && moves && fast == n && travels_beyond(p.vx, p.vy, dt, max_travel)) fast = i;
       if (!listed || out.size() > kMoves) continue;
       // a particle left out of the list (no finite box) must still have none
       const Box bx = swept_box(p, dt);

@@ -405,9 +405,7 @@ std::size_t SdfBackend::too_fast(const MutableState& s, double dt, bool threads)
   auto first = [=](std::size_t b, std::size_t e) {
     for (std::size_t i = b; i < e; ++i) {
       if (!(w[i] > 0.0)) continue;  // pinned particles do not move
-      if (!(std::abs(v[2 * i]) * dt <= kMaxMagnitude &&
-            std::abs(v[2 * i + 1]) * dt <= kMaxMagnitude))
-        return i;
+      if (travels_beyond(v[2 * i], v[2 * i + 1], dt)) return i;
     }
     return e;
   };

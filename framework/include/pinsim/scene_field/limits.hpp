@@ -17,6 +17,12 @@ namespace pinsim::sdf {
 /// the march can stop in it.
 inline constexpr double kMaxMagnitude = 1e9;
 
+/// Whether velocity (vx, vy) travels beyond `limit` along an axis in dt (a NaN does): the
+/// sdf backend refuses such a step (its too_fast(), and the pair contacts' sweep).
+inline bool travels_beyond(double vx, double vy, double dt, double limit = kMaxMagnitude) {
+  return !(std::abs(vx) * dt <= limit && std::abs(vy) * dt <= limit);
+}
+
 /// A number for messages, as printf's %.6g.
 inline std::string num(double x) {
   char buf[32];
