@@ -229,6 +229,19 @@ double process_cpu_ns() {
   return 1e9 * static_cast<double>(ts.tv_sec) + static_cast<double>(ts.tv_nsec);
 }
 
+/// Process CPU time and wall time, ns, summed over the blocks timed.
+struct Timed {
+  double cpu = 0.0, wall = 0.0;
+  template <class F>
+  void add(F&& f) {
+    const auto w0 = std::chrono::steady_clock::now();
+    const double t0 = process_cpu_ns();
+    f();
+    cpu += process_cpu_ns() - t0;
+    wall += std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - w0).count();
+  }
+};
+
 // Backend alone on `threads` threads (a oneTBB limit, as `pinsim run --threads`): per
 // ball-step over the case's steps (Box2D: its first box2d_steps).
 template <class B>
@@ -242,14 +255,12 @@ BackendFigures backend_ns(const Case& c, const json& params, const json& contact
 #endif
   BenchWorld<B> w(c.scene, params, c.x0, c.v0, c.radius, contacts, c.mass);
   const double dt = c.scene["time"]["dt"];
-  const auto w0 = std::chrono::steady_clock::now();
-  const double t0 = process_cpu_ns();
-  for (int s = 0; s < steps; ++s) w.step(dt, gx, gy);
-  const double cpu = process_cpu_ns() - t0;
-  const double wall =
-      std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - w0).count();
+  Timed t;
+  t.add([&] {
+    for (int s = 0; s < steps; ++s) w.step(dt, gx, gy);
+  });
   const double per = static_cast<double>(steps) * static_cast<double>(w.w.size());
-  return {cpu / per, wall / per, w.hash()};
+  return {t.cpu / per, t.wall / per, w.hash()};
 }
 
 /// Steps of each copy per turn of sdf_in_turn.
@@ -275,25 +286,23 @@ struct InTurn {
 // shared host two cores may not run two threads at twice the speed of one).
 InTurn sdf_in_turn(const Case& c, const json& params, int steps, double gx, double gy,
                    int threads) {
+  using World = std::unique_ptr<BenchWorld<SdfBackend>>;
+  auto world = [&](const json& contacts) {
+    return std::make_unique<BenchWorld<SdfBackend>>(c.scene, params, c.x0, c.v0, c.radius, contacts,
+                                                    c.mass);
+  };
   struct Copy {
-    std::unique_ptr<BenchWorld<SdfBackend>> w;
+    World w;
     int threads = 1;
-    double cpu = 0.0, wall = 0.0;
+    Timed t;
   };
   std::vector<Copy> copies;
-  auto add = [&](const json& contacts, int t) {
-    copies.push_back({std::make_unique<BenchWorld<SdfBackend>>(c.scene, params, c.x0, c.v0,
-                                                               c.radius, contacts, c.mass),
-                      t});
-  };
-  add(c.contacts, 1);
-  if (threads > 1) add(c.contacts, threads);
-  if (!c.contacts.is_null()) add({{"particles", false}}, 1);
-  std::vector<std::unique_ptr<BenchWorld<SdfBackend>>> side;
-  for (int k = 0; threads > 1 && k < threads; ++k)
-    side.push_back(std::make_unique<BenchWorld<SdfBackend>>(c.scene, params, c.x0, c.v0, c.radius,
-                                                            c.contacts, c.mass));
-  double side_wall = 0.0;
+  copies.push_back({world(c.contacts), 1, {}});
+  if (threads > 1) copies.push_back({world(c.contacts), threads, {}});
+  if (!c.contacts.is_null()) copies.push_back({world({{"particles", false}}), 1, {}});
+  std::vector<World> side;
+  for (int k = 0; threads > 1 && k < threads; ++k) side.push_back(world(c.contacts));
+  Timed side_t;
   const double dt = c.scene["time"]["dt"];
   for (int done = 0; done < steps; done += kTurnSteps) {
     const int end = std::min(steps, done + kTurnSteps);
@@ -302,44 +311,40 @@ InTurn sdf_in_turn(const Case& c, const json& params, int steps, double gx, doub
       const tbb::global_control limit(tbb::global_control::max_allowed_parallelism,
                                       static_cast<std::size_t>(k.threads));
 #endif
-      const auto w0 = std::chrono::steady_clock::now();
-      const double t0 = process_cpu_ns();
-      for (int s = done; s < end; ++s) k.w->step(dt, gx, gy);
-      k.cpu += process_cpu_ns() - t0;
-      k.wall +=
-          std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - w0).count();
+      k.t.add([&] {
+        for (int s = done; s < end; ++s) k.w->step(dt, gx, gy);
+      });
     }
     if (side.empty()) continue;
 #ifdef PINSIM_WITH_TBB
     const tbb::global_control limit(tbb::global_control::max_allowed_parallelism, 1);
 #endif
     std::vector<std::exception_ptr> failed(side.size());
-    std::vector<std::jthread> running;  // (joined also if a later one fails to start)
-    const auto w0 = std::chrono::steady_clock::now();
-    for (std::size_t k = 0; k < side.size(); ++k)
-      running.emplace_back([&, k] {
-        try {
-          for (int s = done; s < end; ++s) side[k]->step(dt, gx, gy);
-        } catch (...) {
-          failed[k] = std::current_exception();
-        }
-      });
-    for (std::jthread& t : running) t.join();
-    side_wall +=
-        std::chrono::duration<double, std::nano>(std::chrono::steady_clock::now() - w0).count();
+    side_t.add([&] {
+      std::vector<std::jthread> running;  // (joined also if a later one fails to start)
+      for (std::size_t k = 0; k < side.size(); ++k)
+        running.emplace_back([&, k] {
+          try {
+            for (int s = done; s < end; ++s) side[k]->step(dt, gx, gy);
+          } catch (...) {
+            failed[k] = std::current_exception();
+          }
+        });
+      for (std::jthread& t : running) t.join();
+    });
     for (const std::exception_ptr& e : failed)
       if (e) std::rethrow_exception(e);
   }
   auto figures = [&](const Copy& k) -> BackendFigures {
     const double per = static_cast<double>(steps) * static_cast<double>(k.w->w.size());
-    return {k.cpu / per, k.wall / per, k.w->hash()};
+    return {k.t.cpu / per, k.t.wall / per, k.w->hash()};
   };
   InTurn out;
   out.one = figures(copies[0]);
   out.many = threads > 1 ? figures(copies[1]) : out.one;
   if (!c.contacts.is_null()) out.off = figures(copies.back());
   if (!side.empty()) {
-    out.ceiling = static_cast<double>(side.size()) * copies[0].wall / side_wall;
+    out.ceiling = static_cast<double>(side.size()) * copies[0].t.wall / side_t.wall;
     for (const auto& w : side) out.side_same = out.side_same && w->hash() == out.one.hash;
   }
   return out;
